@@ -1,0 +1,392 @@
+//! Global assembly: element kernels scattered into one sparse symmetric matrix.
+//!
+//! The pattern (lower triangle, column-compressed) is built once from the cell table; every
+//! cell contributes a fixed number of values (`m (m + 1) / 2` for `m = nodes * D` distinct
+//! dofs), so the value array is cut into disjoint per-cell chunks that rayon fills in parallel;
+//! faer's argsort then sums the duplicates. The result is the same with any thread count
+//! because each chunk is written by exactly one cell and the summation order is fixed.
+
+use faer::sparse::{Argsort, Pair, SparseColMat, SymbolicSparseColMat};
+use nalgebra::{SMatrix, SVector};
+
+use crate::dim::{Dim, Kinematics, SpatialDim, Voigt, VoigtMatrix};
+use crate::element::{ElementKind, MAX_NODES};
+use crate::error::{Error, Result};
+
+/// Largest number of dofs of one cell.
+const MAX_DOFS: usize = MAX_NODES * 3;
+
+/// A run of cells of one kind and one body, stored contiguously.
+#[derive(Debug, Clone)]
+pub struct CellSegment {
+    /// Element type.
+    pub kind: ElementKind,
+    /// Body index.
+    pub body: usize,
+    /// Range of cells in the table.
+    pub cells: std::ops::Range<usize>,
+    /// First value slot of the segment in the value arrays.
+    pub first_value: usize,
+}
+
+/// All cells of all bodies, with global node numbers.
+#[derive(Debug, Clone, Default)]
+pub struct CellTable {
+    /// Global node ids, flat; cell `c` of segment `s` starts at `node_start[c]`.
+    pub nodes: Vec<usize>,
+    /// Start of each cell in `nodes`.
+    pub node_start: Vec<usize>,
+    /// Segments of uniform kind and body.
+    pub segments: Vec<CellSegment>,
+}
+
+impl CellTable {
+    /// Adds a block of cells of one body; `connectivity` holds local node ids, shifted by
+    /// `node_offset` to global ones.
+    pub fn push_block(
+        &mut self,
+        body: usize,
+        kind: ElementKind,
+        connectivity: &[usize],
+        node_offset: usize,
+    ) {
+        let n = kind.nodes();
+        let first_cell = self.node_start.len();
+        let first_value = self.value_count();
+        for cell in connectivity.chunks_exact(n) {
+            self.node_start.push(self.nodes.len());
+            self.nodes.extend(cell.iter().map(|&i| i + node_offset));
+        }
+        let cells = first_cell..self.node_start.len();
+        self.segments.push(CellSegment { kind, body, cells, first_value });
+    }
+
+    /// Total number of values (lower-triangle triplets) of all cells for dimension `d`.
+    fn value_count(&self) -> usize {
+        self.segments
+            .last()
+            .map(|s| s.first_value + s.cells.len() * values_per_cell(s.kind, self.dimension()))
+            .unwrap_or(0)
+    }
+
+    fn dimension(&self) -> usize {
+        self.segments.first().map(|s| s.kind.dimension()).unwrap_or(2)
+    }
+
+    /// The global nodes of cell `c`.
+    pub fn cell(&self, c: usize, kind: ElementKind) -> &[usize] {
+        &self.nodes[self.node_start[c]..self.node_start[c] + kind.nodes()]
+    }
+
+    /// Number of cells.
+    pub fn len(&self) -> usize {
+        self.node_start.len()
+    }
+
+    /// Whether there is no cell.
+    pub fn is_empty(&self) -> bool {
+        self.node_start.is_empty()
+    }
+}
+
+fn values_per_cell(kind: ElementKind, d: usize) -> usize {
+    let m = kind.nodes() * d;
+    m * (m + 1) / 2
+}
+
+/// Calls `f(p, q)` for the lower-triangle local dof pairs of a cell, in the canonical order
+/// shared by the pattern and the value fill.
+#[inline]
+fn for_lower_pairs<const D: usize>(cell: &[usize], mut f: impl FnMut(usize, usize)) {
+    let m = cell.len() * D;
+    for p in 0..m {
+        let gp = cell[p / D] * D + p % D;
+        for q in 0..m {
+            let gq = cell[q / D] * D + q % D;
+            if gp > gq || (gp == gq && p == q) {
+                f(p, q);
+            }
+        }
+    }
+}
+
+/// The sparsity pattern of the global matrices (lower triangle), built once.
+#[derive(Clone)]
+pub struct Pattern {
+    /// Number of unknowns.
+    pub size: usize,
+    symbolic: SymbolicSparseColMat<usize>,
+    argsort: Argsort<usize>,
+    /// Number of triplet values (cell contributions before summation).
+    pub triplets: usize,
+}
+
+impl std::fmt::Debug for Pattern {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Pattern").field("size", &self.size).field("triplets", &self.triplets).finish()
+    }
+}
+
+impl Pattern {
+    /// The pattern of a cell table over `nodes` nodes.
+    pub fn new<const D: usize>(table: &CellTable, nodes: usize) -> Result<Self> {
+        let size = nodes * D;
+        let mut pairs = Vec::with_capacity(table.value_count());
+        for seg in &table.segments {
+            for c in seg.cells.clone() {
+                let cell = table.cell(c, seg.kind);
+                for_lower_pairs::<D>(cell, |p, q| {
+                    let gp = cell[p / D] * D + p % D;
+                    let gq = cell[q / D] * D + q % D;
+                    pairs.push(Pair::new(gp, gq));
+                });
+            }
+        }
+        let triplets = pairs.len();
+        let (symbolic, argsort) = SymbolicSparseColMat::try_new_from_indices(size, size, &pairs)
+            .map_err(|e| Error::Factorization { step: 0, message: format!("pattern: {e:?}") })?;
+        Ok(Pattern { size, symbolic, argsort, triplets })
+    }
+
+    /// Sums per-cell triplet values into a matrix of this pattern.
+    pub fn matrix(&self, values: &[f64]) -> SparseColMat<usize, f64> {
+        SparseColMat::new_from_argsort(self.symbolic.clone(), &self.argsort, values)
+            .expect("values match the pattern by construction")
+    }
+}
+
+/// What one body needs for its element integrals.
+#[derive(Debug, Clone, Copy)]
+pub struct BodyIntegration {
+    /// Kinematics of the body.
+    pub kinematics: Kinematics,
+    /// Voigt tangent (condensed for plane stress).
+    pub tangent: VoigtMatrix,
+    /// Density [kg/m^3].
+    pub density: f64,
+}
+
+/// The stiffness and mass of one cell as lower-triangle values in canonical order.
+#[allow(non_snake_case)]
+fn cell_matrices<const D: usize>(
+    kind: ElementKind,
+    cell: &[usize],
+    x: &[SVector<f64, D>],
+    body: &BodyIntegration,
+    k_out: &mut [f64],
+    m_out: &mut [f64],
+) where
+    Dim<D>: SpatialDim<D>,
+{
+    let n = kind.nodes();
+    let m = n * D;
+    let mut K = [[0.0f64; MAX_DOFS]; MAX_DOFS];
+    let mut M = [[0.0f64; MAX_NODES]; MAX_NODES];
+    let mut b = [SMatrix::<f64, 6, D>::zeros(); MAX_NODES];
+    for q in kind.quadrature() {
+        let (shape, grads, position, det) = spatial_gradients::<D>(kind, cell, x, q.xi);
+        let dv = q.weight * det * <Dim<D>>::measure_factor(body.kinematics, &position);
+        for a in 0..n {
+            b[a] = <Dim<D>>::strain_operator(body.kinematics, shape[a], &grads[a], position[0]);
+        }
+        for a in 0..n {
+            let cb = body.tangent * b[a];
+            for bb in 0..n {
+                let kab = b[bb].transpose() * cb * dv; // (D x 6)(6 x D): block (bb, a)
+                for i in 0..D {
+                    for j in 0..D {
+                        K[bb * D + i][a * D + j] += kab[(i, j)];
+                    }
+                }
+                M[a][bb] += body.density * shape[a] * shape[bb] * dv;
+            }
+        }
+    }
+    let mut slot = 0;
+    for_lower_pairs::<D>(cell, |p, q| {
+        k_out[slot] = K[p][q];
+        m_out[slot] = if p % D == q % D { M[p / D][q / D] } else { 0.0 };
+        slot += 1;
+    });
+    debug_assert_eq!(slot, m * (m + 1) / 2);
+}
+
+/// Shape values, spatial gradients, position and Jacobian determinant at a reference point.
+pub fn spatial_gradients<const D: usize>(
+    kind: ElementKind,
+    cell: &[usize],
+    x: &[SVector<f64, D>],
+    xi: [f64; 3],
+) -> ([f64; MAX_NODES], [SVector<f64, D>; MAX_NODES], SVector<f64, D>, f64)
+where
+    Dim<D>: SpatialDim<D>,
+{
+    let s = kind.shape(xi);
+    let mut jac = SMatrix::<f64, D, D>::zeros();
+    let mut position = SVector::<f64, D>::zeros();
+    for (a, &node) in cell.iter().enumerate() {
+        position += x[node] * s.n[a];
+        for k in 0..D {
+            jac.column_mut(k).axpy(s.dn[a][k], &x[node], 1.0);
+        }
+    }
+    let det = <Dim<D>>::det(&jac);
+    let inv = <Dim<D>>::inverse(&jac).unwrap_or_else(SMatrix::zeros);
+    let mut grads = [SVector::<f64, D>::zeros(); MAX_NODES];
+    for a in 0..cell.len() {
+        let mut dxi = SVector::<f64, D>::zeros();
+        for k in 0..D {
+            dxi[k] = s.dn[a][k];
+        }
+        // dN/dx = J^-T dN/dxi, with J_ik = dx_i/dxi_k.
+        grads[a] = inv.transpose() * dxi;
+    }
+    (s.n, grads, position, det)
+}
+
+/// Stiffness and mass matrices of linear bodies, assembled on the reference configuration.
+pub struct LinearMatrices {
+    /// Stiffness K [N/m] (lower triangle).
+    pub stiffness: SparseColMat<usize, f64>,
+    /// Mass M [kg] (lower triangle), consistent or lumped.
+    pub mass: SparseColMat<usize, f64>,
+}
+
+/// Assembles the stiffness and mass of every cell (in parallel with the `parallel` feature).
+pub fn assemble_linear<const D: usize>(
+    table: &CellTable,
+    pattern: &Pattern,
+    x: &[SVector<f64, D>],
+    bodies: &[BodyIntegration],
+    lumped: bool,
+) -> LinearMatrices
+where
+    Dim<D>: SpatialDim<D>,
+{
+    let (k_vals, m_vals) = cell_values::<D>(table, pattern, x, bodies);
+    let stiffness = pattern.matrix(&k_vals);
+    let mut mass = pattern.matrix(&m_vals);
+    if lumped {
+        lump(&mut mass);
+    }
+    LinearMatrices { stiffness, mass }
+}
+
+/// Per-cell triplet values of the stiffness and the consistent mass.
+pub fn cell_values<const D: usize>(
+    table: &CellTable,
+    pattern: &Pattern,
+    x: &[SVector<f64, D>],
+    bodies: &[BodyIntegration],
+) -> (Vec<f64>, Vec<f64>)
+where
+    Dim<D>: SpatialDim<D>,
+{
+    let mut k_vals = vec![0.0; pattern.triplets];
+    let mut m_vals = vec![0.0; pattern.triplets];
+    for seg in &table.segments {
+        let per = values_per_cell(seg.kind, D);
+        let range = seg.first_value..seg.first_value + per * seg.cells.len();
+        let body = &bodies[seg.body];
+        let work = |(c, (k, m)): (usize, (&mut [f64], &mut [f64]))| {
+            let cell = table.cell(seg.cells.start + c, seg.kind);
+            cell_matrices::<D>(seg.kind, cell, x, body, k, m);
+        };
+        let (k_seg, m_seg) = (&mut k_vals[range.clone()], &mut m_vals[range]);
+        #[cfg(feature = "parallel")]
+        {
+            use rayon::prelude::*;
+            k_seg.par_chunks_mut(per).zip(m_seg.par_chunks_mut(per)).enumerate().for_each(work);
+        }
+        #[cfg(not(feature = "parallel"))]
+        k_seg.chunks_mut(per).zip(m_seg.chunks_mut(per)).enumerate().for_each(work);
+    }
+    (k_vals, m_vals)
+}
+
+/// Replaces a consistent mass matrix by its row-sum lumped diagonal (same pattern).
+pub fn lump(mass: &mut SparseColMat<usize, f64>) {
+    let n = mass.nrows();
+    let ones = vec![1.0; n];
+    let mut row_sums = vec![0.0; n];
+    symmetric_mul_add(mass, &ones, 1.0, &mut row_sums);
+    let col_ptr = mass.symbolic().col_ptr().to_vec();
+    let row_idx = mass.symbolic().row_idx().to_vec();
+    let vals = mass.val_mut();
+    for j in 0..n {
+        for k in col_ptr[j]..col_ptr[j + 1] {
+            vals[k] = if row_idx[k] == j { row_sums[j] } else { 0.0 };
+        }
+    }
+}
+
+/// `y += s A x` for a symmetric matrix stored as its lower triangle.
+pub fn symmetric_mul_add(a: &SparseColMat<usize, f64>, x: &[f64], s: f64, y: &mut [f64]) {
+    let col_ptr = a.symbolic().col_ptr();
+    let row_idx = a.symbolic().row_idx();
+    let vals = a.val();
+    for j in 0..a.ncols() {
+        let xj = s * x[j];
+        let mut acc = 0.0;
+        for k in col_ptr[j]..col_ptr[j + 1] {
+            let i = row_idx[k];
+            let v = vals[k];
+            y[i] += v * xj;
+            if i != j {
+                acc += v * x[i];
+            }
+        }
+        y[j] += s * acc;
+    }
+}
+
+/// `x^T A y` for a symmetric matrix stored as its lower triangle.
+pub fn symmetric_dot(a: &SparseColMat<usize, f64>, x: &[f64], y: &[f64]) -> f64 {
+    let mut ay = vec![0.0; y.len()];
+    symmetric_mul_add(a, y, 1.0, &mut ay);
+    x.iter().zip(&ay).map(|(a, b)| a * b).sum()
+}
+
+/// The average Voigt stress of every cell for displacements `u` (flat, D per node), and the
+/// cell's body index.
+pub fn cell_stresses<const D: usize>(
+    table: &CellTable,
+    x: &[SVector<f64, D>],
+    bodies: &[BodyIntegration],
+    u: &[f64],
+) -> Vec<Voigt>
+where
+    Dim<D>: SpatialDim<D>,
+{
+    let mut out = Vec::with_capacity(table.len());
+    for seg in &table.segments {
+        let body = &bodies[seg.body];
+        for c in seg.cells.clone() {
+            let cell = table.cell(c, seg.kind);
+            let mut sum = Voigt::zeros();
+            let mut weight = 0.0;
+            for q in seg.kind.quadrature() {
+                let (shape, grads, position, det) = spatial_gradients::<D>(seg.kind, cell, x, q.xi);
+                let mut strain = Voigt::zeros();
+                for (a, &node) in cell.iter().enumerate() {
+                    let b = <Dim<D>>::strain_operator(body.kinematics, shape[a], &grads[a], position[0]);
+                    let ua = SVector::<f64, D>::from_column_slice(&u[node * D..node * D + D]);
+                    strain += b * ua;
+                }
+                let w = q.weight * det;
+                sum += body.tangent * strain * w;
+                weight += w;
+            }
+            out.push(if weight > 0.0 { sum / weight } else { sum });
+        }
+    }
+    out
+}
+
+/// Von Mises equivalent stress of a Voigt stress.
+pub fn von_mises(s: &Voigt) -> f64 {
+    let (xx, yy, zz, yz, xz, xy) = (s[0], s[1], s[2], s[3], s[4], s[5]);
+    (0.5 * ((xx - yy).powi(2) + (yy - zz).powi(2) + (zz - xx).powi(2))
+        + 3.0 * (yz * yz + xz * xz + xy * xy))
+        .sqrt()
+}

@@ -1,0 +1,195 @@
+//! The one place where 2D and 3D differ.
+//!
+//! Everything in softway is generic over `const D: usize` with the single bound
+//! `where Dim<D>: SpatialDim<D>`. Determinants, inverses, facet normals, the embedding of a
+//! D-dimensional gradient in the 3D strain of the material law and the angular velocity all
+//! live here, implemented for `Dim<2>` and `Dim<3>` only (the trait is sealed).
+
+use nalgebra::{Matrix2, Matrix3, SMatrix, SVector, Vector2, Vector3};
+use serde::{Deserialize, Serialize};
+
+/// A 6-component Voigt vector: `[xx, yy, zz, yz, xz, xy]`; strains carry engineering shears
+/// (`2 eps_ij`), stresses the tensor components.
+pub type Voigt = SVector<f64, 6>;
+/// A 6x6 Voigt matrix (material tangent).
+pub type VoigtMatrix = SMatrix<f64, 6, 6>;
+
+/// How a 2D model stands for a 3D body.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "snake_case")]
+pub enum Kinematics {
+    /// 2D, `eps_zz = 0`; quantities per unit thickness.
+    #[default]
+    PlaneStrain,
+    /// 2D, `sigma_zz = 0`; quantities per unit thickness.
+    PlaneStress,
+    /// 2D, x = r >= 0, y = the axis; hoop strain `u_r / r`; quantities over the whole revolution.
+    Axisymmetric,
+    /// 3D solid.
+    Solid,
+}
+
+/// Marker type carrying the spatial dimension.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct Dim<const D: usize>;
+
+mod sealed {
+    pub trait Sealed {}
+    impl Sealed for super::Dim<2> {}
+    impl Sealed for super::Dim<3> {}
+}
+
+/// Dimension-specific operations; implemented for `Dim<2>` and `Dim<3>` only.
+pub trait SpatialDim<const D: usize>: sealed::Sealed + Send + Sync + 'static {
+    /// Number of angular velocity components (1 in 2D, 3 in 3D).
+    const ANGULAR: usize;
+
+    /// Determinant of a D x D matrix.
+    fn det(m: &SMatrix<f64, D, D>) -> f64;
+
+    /// Inverse of a D x D matrix, `None` when singular.
+    fn inverse(m: &SMatrix<f64, D, D>) -> Option<SMatrix<f64, D, D>>;
+
+    /// Measure (length in 2D, area in 3D) and unit outward normal of a boundary facet
+    /// (a segment in 2D, a triangle in 3D) whose nodes are ordered so that the body lies on
+    /// the left of the segment (2D) or below the counter-clockwise triangle (3D).
+    fn facet_measure_normal(p: &[SVector<f64, D>; D]) -> (f64, SVector<f64, D>);
+
+    /// The velocity `omega x r` of a rigid spin; `omega` has [`SpatialDim::ANGULAR`] components.
+    fn spin_velocity(omega: &[f64], r: &SVector<f64, D>) -> SVector<f64, D>;
+
+    /// The strain-rate operator of one node: maps the node's velocity to the Voigt strain rate,
+    /// given the shape function value `n`, its spatial gradient `grad` and the radius `r`
+    /// (used by axisymmetric kinematics only).
+    fn strain_operator(
+        kinematics: Kinematics,
+        n: f64,
+        grad: &SVector<f64, D>,
+        r: f64,
+    ) -> SMatrix<f64, 6, D>;
+
+    /// The measure factor of a quadrature point: 1 for plane and solid kinematics, `2 pi r`
+    /// for axisymmetric ones (integrals are over the whole revolution).
+    fn measure_factor(kinematics: Kinematics, position: &SVector<f64, D>) -> f64;
+
+    /// Whether these kinematics belong to this dimension.
+    fn supports(kinematics: Kinematics) -> bool;
+
+    /// Embeds a point in 3D space (z = 0 in 2D), for output files.
+    fn to_3d(v: &SVector<f64, D>) -> [f64; 3];
+}
+
+impl SpatialDim<2> for Dim<2> {
+    const ANGULAR: usize = 1;
+
+    fn det(m: &Matrix2<f64>) -> f64 {
+        m.determinant()
+    }
+
+    fn inverse(m: &Matrix2<f64>) -> Option<Matrix2<f64>> {
+        m.try_inverse()
+    }
+
+    fn facet_measure_normal(p: &[Vector2<f64>; 2]) -> (f64, Vector2<f64>) {
+        let t = p[1] - p[0];
+        let length = t.norm();
+        if length == 0.0 {
+            return (0.0, Vector2::zeros());
+        }
+        // Body on the left of p0 -> p1: the outward normal is the tangent turned clockwise.
+        (length, Vector2::new(t.y, -t.x) / length)
+    }
+
+    fn spin_velocity(omega: &[f64], r: &Vector2<f64>) -> Vector2<f64> {
+        omega[0] * Vector2::new(-r.y, r.x)
+    }
+
+    fn strain_operator(
+        kinematics: Kinematics,
+        n: f64,
+        grad: &Vector2<f64>,
+        r: f64,
+    ) -> SMatrix<f64, 6, 2> {
+        let mut b = SMatrix::<f64, 6, 2>::zeros();
+        b[(0, 0)] = grad.x;
+        b[(1, 1)] = grad.y;
+        b[(5, 0)] = grad.y;
+        b[(5, 1)] = grad.x;
+        if kinematics == Kinematics::Axisymmetric {
+            // Hoop strain u_r / r sits in the out-of-plane slot.
+            b[(2, 0)] = if r > 0.0 { n / r } else { 0.0 };
+        }
+        b
+    }
+
+    fn measure_factor(kinematics: Kinematics, position: &Vector2<f64>) -> f64 {
+        match kinematics {
+            Kinematics::Axisymmetric => 2.0 * std::f64::consts::PI * position.x,
+            _ => 1.0,
+        }
+    }
+
+    fn supports(kinematics: Kinematics) -> bool {
+        kinematics != Kinematics::Solid
+    }
+
+    fn to_3d(v: &Vector2<f64>) -> [f64; 3] {
+        [v.x, v.y, 0.0]
+    }
+}
+
+impl SpatialDim<3> for Dim<3> {
+    const ANGULAR: usize = 3;
+
+    fn det(m: &Matrix3<f64>) -> f64 {
+        m.determinant()
+    }
+
+    fn inverse(m: &Matrix3<f64>) -> Option<Matrix3<f64>> {
+        m.try_inverse()
+    }
+
+    fn facet_measure_normal(p: &[Vector3<f64>; 3]) -> (f64, Vector3<f64>) {
+        let c = (p[1] - p[0]).cross(&(p[2] - p[0]));
+        let twice_area = c.norm();
+        if twice_area == 0.0 {
+            return (0.0, Vector3::zeros());
+        }
+        (0.5 * twice_area, c / twice_area)
+    }
+
+    fn spin_velocity(omega: &[f64], r: &Vector3<f64>) -> Vector3<f64> {
+        Vector3::new(omega[0], omega[1], omega[2]).cross(r)
+    }
+
+    fn strain_operator(
+        _kinematics: Kinematics,
+        _n: f64,
+        grad: &Vector3<f64>,
+        _r: f64,
+    ) -> SMatrix<f64, 6, 3> {
+        let mut b = SMatrix::<f64, 6, 3>::zeros();
+        b[(0, 0)] = grad.x;
+        b[(1, 1)] = grad.y;
+        b[(2, 2)] = grad.z;
+        b[(3, 1)] = grad.z;
+        b[(3, 2)] = grad.y;
+        b[(4, 0)] = grad.z;
+        b[(4, 2)] = grad.x;
+        b[(5, 0)] = grad.y;
+        b[(5, 1)] = grad.x;
+        b
+    }
+
+    fn measure_factor(_kinematics: Kinematics, _position: &Vector3<f64>) -> f64 {
+        1.0
+    }
+
+    fn supports(kinematics: Kinematics) -> bool {
+        kinematics == Kinematics::Solid
+    }
+
+    fn to_3d(v: &Vector3<f64>) -> [f64; 3] {
+        [v.x, v.y, v.z]
+    }
+}

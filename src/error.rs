@@ -1,0 +1,144 @@
+//! The crate's one error type.
+
+use std::path::PathBuf;
+
+/// Everything that can go wrong in softway. Each variant carries enough context to act on.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum Error {
+    /// A scene file (or a `--set` override) holds a value that cannot be used.
+    #[error("{file}: {location}`{key}`: found {found}, expected {expected}")]
+    Scene {
+        /// The scene file.
+        file: PathBuf,
+        /// `line N: ` when known, else empty.
+        location: String,
+        /// Dotted key path, e.g. `bodies.0.material.youngs_modulus`.
+        key: String,
+        /// What was found.
+        found: String,
+        /// What is expected.
+        expected: String,
+    },
+    /// The scene file is not valid TOML or does not match the schema.
+    #[error("{file}: {message}")]
+    SceneSyntax {
+        /// The scene file.
+        file: PathBuf,
+        /// The parser's message, with line and column.
+        message: String,
+    },
+    /// A parameter passed through the library API is out of range.
+    #[error("invalid parameter `{name}`: found {found}, expected {expected}")]
+    InvalidParameter {
+        /// Parameter name.
+        name: String,
+        /// What was found.
+        found: String,
+        /// What is expected.
+        expected: String,
+    },
+    /// A mesh file could not be read.
+    #[error("mesh file {file}: {message}")]
+    MeshFile {
+        /// The mesh file.
+        file: PathBuf,
+        /// What went wrong, with the line or byte offset where known.
+        message: String,
+    },
+    /// A mesh is not usable (wrong element type, empty, bad connectivity).
+    #[error("mesh of body `{body}`: {message}")]
+    Mesh {
+        /// Body name.
+        body: String,
+        /// What is wrong.
+        message: String,
+    },
+    /// An element has a non-positive Jacobian (inverted or degenerate).
+    #[error(
+        "body `{body}`: cell {cell} is {kind} (Jacobian determinant {jacobian:.3e}); \
+         expected a positive determinant (check the node ordering and the geometry)"
+    )]
+    InvertedElement {
+        /// Body name.
+        body: String,
+        /// Cell index in the body's mesh.
+        cell: usize,
+        /// "inverted" or "degenerate".
+        kind: &'static str,
+        /// The smallest Jacobian determinant found.
+        jacobian: f64,
+    },
+    /// A node selection (constraint region, probe) selects no node.
+    #[error("{what} selects no node of body `{body}`; {hint}")]
+    EmptySelection {
+        /// What selected nothing, e.g. `constraint 0`.
+        what: String,
+        /// Body name.
+        body: String,
+        /// What to change.
+        hint: String,
+    },
+    /// A feature the scene asks for is not implemented in this version.
+    #[error("{feature} is not available in this version of softway: {detail}")]
+    NotAvailable {
+        /// The feature.
+        feature: String,
+        /// What works instead.
+        detail: String,
+    },
+    /// Newton (with the contact iterations) did not converge, even after cutting the step.
+    #[error(
+        "no convergence at step {step} (t = {time:.6e} s) after {iterations} iterations: \
+         relative residual {residual:.3e} > tolerance {tolerance:.1e}; try a smaller time_step \
+         or a larger max_iterations"
+    )]
+    NotConverged {
+        /// Step number (1-based).
+        step: usize,
+        /// Time at the start of the step [s].
+        time: f64,
+        /// Iterations spent.
+        iterations: usize,
+        /// Last relative residual.
+        residual: f64,
+        /// The tolerance asked for.
+        tolerance: f64,
+    },
+    /// The energy grew without bound or a value became non-finite.
+    #[error(
+        "numerical instability at step {step} (t = {time:.6e} s): {detail}; \
+         use alpha >= sqrt(2)/2 ~ 0.7071 with beta in [1 - alpha, alpha^2 - alpha + 1/2] \
+         (the unconditionally stable window), or a smaller time_step"
+    )]
+    Unstable {
+        /// Step number (1-based).
+        step: usize,
+        /// Time at the end of the failed step [s].
+        time: f64,
+        /// The energy growth or the non-finite quantity.
+        detail: String,
+    },
+    /// The sparse factorisation failed (matrix not positive definite).
+    #[error("factorisation failed at step {step}: {message}")]
+    Factorization {
+        /// Step number.
+        step: usize,
+        /// Solver message.
+        message: String,
+    },
+    /// Writing an output file failed.
+    #[error("cannot write {file}: {source}")]
+    Output {
+        /// The file or folder.
+        file: PathBuf,
+        /// The I/O error.
+        source: std::io::Error,
+    },
+    /// A handle does not name an existing body, obstacle or node.
+    #[error("{0}")]
+    InvalidHandle(String),
+}
+
+/// `Result` with softway's [`Error`].
+pub type Result<T, E = Error> = std::result::Result<T, E>;

@@ -1,0 +1,63 @@
+//! # softway
+//!
+//! Deformable bodies in dynamic contact with the space-time velocity formulation and the
+//! "soft way" contact method of Bajer & Bohatier (1995).
+//!
+//! All quantities are SI: metres, seconds, kilograms, newtons, pascals, joules. In plane
+//! kinematics forces and energies are per unit thickness (1 m); in axisymmetric kinematics they
+//! are totals over the whole revolution.
+//!
+//! ```
+//! use softway::prelude::*;
+//! use nalgebra::Vector2;
+//!
+//! // A 1 m x 0.1 m steel strip, clamped at x = 0, sagging under gravity.
+//! let mesh = rectangle(Vector2::new(0.0, 0.0), Vector2::new(1.0, 0.1), [20, 2], ElementKind::Quad4)?;
+//! let steel = Material::LinearElastic(LinearElastic::new(210e9, 0.3, 7800.0)?);
+//! let beam = Body::new("beam", mesh, steel)
+//!     .with_constraint_in_box(Vector2::new(-1e-9, -1.0), Vector2::new(1e-9, 1.0), [Some(0.0), Some(0.0)]);
+//! let mut sim = Simulation2::builder()
+//!     .time_step(1e-4)
+//!     .gravity(Vector2::new(0.0, -9.81))
+//!     .body(beam)
+//!     .build()?;
+//! for _ in 0..10 {
+//!     let report = sim.step()?;
+//!     assert_eq!(report.iterations, 1); // linear: one solve per step
+//! }
+//! let tip = sim.displacement(sim.body_id("beam").unwrap(), 20)?;
+//! assert!(tip.y < 0.0);
+//! # Ok::<(), softway::Error>(())
+//! ```
+
+#![warn(missing_docs)]
+
+pub mod assembly;
+pub mod dim;
+pub mod element;
+pub mod error;
+pub mod material;
+pub mod mesh;
+pub mod recording;
+pub mod simulation;
+pub mod solver;
+pub mod time;
+
+pub use error::{Error, Result};
+pub use simulation::{Simulation, Simulation2, Simulation3};
+
+/// The types most programs need.
+pub mod prelude {
+    pub use crate::dim::{Dim, Kinematics, SpatialDim};
+    pub use crate::element::ElementKind;
+    pub use crate::error::{Error, Result};
+    pub use crate::material::{LinearElastic, Material};
+    pub use crate::mesh::generators::{annulus, cuboid, extrude, polygon, rectangle};
+    pub use crate::mesh::Mesh;
+    pub use crate::recording::{NullRecorder, Recorder};
+    pub use crate::simulation::{
+        Body, BodyId, Energies, MassKind, Settings, Simulation, Simulation2, Simulation3,
+        SimulationBuilder, StepReport,
+    };
+    pub use crate::time::{Beta, SpaceTimeScheme};
+}

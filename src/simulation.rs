@@ -1,0 +1,924 @@
+//! `Simulation<D>`: bodies, their state, and the space-time velocity step.
+
+use faer::sparse::SparseColMat;
+use nalgebra::SVector;
+use serde::{Deserialize, Serialize};
+
+use crate::assembly::{self, BodyIntegration, CellTable, LinearMatrices, Pattern};
+use crate::dim::{Dim, Kinematics, SpatialDim};
+use crate::error::{Error, Result};
+use crate::material::Material;
+use crate::mesh::Mesh;
+use crate::recording::{IterationInfo, NullRecorder, Recorder};
+use crate::solver::SparseCholesky;
+use crate::time::{Beta, SpaceTimeScheme};
+
+/// Consistent or row-sum lumped mass matrix.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum MassKind {
+    /// `int rho N_a N_b` (the default).
+    #[default]
+    Consistent,
+    /// Row sums of the consistent matrix on the diagonal.
+    Lumped,
+}
+
+/// Global parameters of a simulation. Units are SI.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Settings<const D: usize> {
+    /// Time step h [s], > 0.
+    pub time_step: f64,
+    /// alpha and beta of the space-time scheme.
+    pub scheme: SpaceTimeScheme,
+    /// Gravity acceleration [m/s^2].
+    pub gravity: SVector<f64, D>,
+    /// 2D: plane strain, plane stress or axisymmetric; 3D: solid.
+    pub kinematics: Kinematics,
+    /// Largest number of Newton and contact iterations in one step.
+    pub max_iterations: usize,
+    /// Relative residual tolerance of Newton.
+    pub tolerance: f64,
+    /// Mass matrix kind.
+    pub mass: MassKind,
+}
+
+impl<const D: usize> Default for Settings<D>
+where
+    Dim<D>: SpatialDim<D>,
+{
+    fn default() -> Self {
+        Settings {
+            time_step: 1e-3,
+            scheme: SpaceTimeScheme::default(),
+            gravity: SVector::zeros(),
+            kinematics: if <Dim<D>>::supports(Kinematics::Solid) {
+                Kinematics::Solid
+            } else {
+                Kinematics::PlaneStrain
+            },
+            max_iterations: 50,
+            tolerance: 1e-8,
+            mass: MassKind::Consistent,
+        }
+    }
+}
+
+/// Prescribed velocity components on a set of nodes of one body.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Constraint {
+    /// Node indices in the body's mesh.
+    pub nodes: Vec<usize>,
+    /// One entry per component; `None` leaves the component free [m/s].
+    pub velocity: Vec<Option<f64>>,
+}
+
+/// A deformable body: mesh, law, initial motion and constraints.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Body<const D: usize> {
+    /// Unique name.
+    pub name: String,
+    /// Mesh in the reference configuration [m].
+    pub mesh: Mesh<D>,
+    /// Constitutive law.
+    pub material: Material,
+    /// Initial velocity of every node [m/s].
+    pub initial_velocity: SVector<f64, D>,
+    /// Initial angular velocity about the centre of mass [rad/s]: 1 component in 2D, 3 in 3D.
+    pub initial_angular_velocity: Vec<f64>,
+    /// Prescribed velocity components.
+    pub constraints: Vec<Constraint>,
+}
+
+impl<const D: usize> Body<D>
+where
+    Dim<D>: SpatialDim<D>,
+{
+    /// A body at rest without constraints.
+    pub fn new(name: impl Into<String>, mesh: Mesh<D>, material: Material) -> Self {
+        Body {
+            name: name.into(),
+            mesh,
+            material,
+            initial_velocity: SVector::zeros(),
+            initial_angular_velocity: vec![0.0; <Dim<D>>::ANGULAR],
+            constraints: Vec::new(),
+        }
+    }
+
+    /// Sets the initial velocity [m/s].
+    pub fn with_velocity(mut self, v: SVector<f64, D>) -> Self {
+        self.initial_velocity = v;
+        self
+    }
+
+    /// Sets the initial angular velocity [rad/s] (1 component in 2D, 3 in 3D).
+    pub fn with_angular_velocity(mut self, omega: &[f64]) -> Self {
+        self.initial_angular_velocity = omega.to_vec();
+        self
+    }
+
+    /// Adds a constraint on the nodes in `[min, max]`: `velocity[k] = Some(v)` prescribes
+    /// component k.
+    pub fn with_constraint_in_box(
+        mut self,
+        min: SVector<f64, D>,
+        max: SVector<f64, D>,
+        velocity: [Option<f64>; D],
+    ) -> Self {
+        let nodes = self.mesh.nodes_in_box(&min, &max);
+        self.constraints.push(Constraint { nodes, velocity: velocity.to_vec() });
+        self
+    }
+}
+
+/// Handle of a body in a simulation.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
+pub struct BodyId(pub usize);
+
+/// Energies and works of the whole system [J] (per unit thickness in plane kinematics, over the
+/// whole revolution in axisymmetric ones).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
+pub struct Energies {
+    /// `1/2 v^T M v`.
+    pub kinetic: f64,
+    /// Stored elastic energy.
+    pub internal: f64,
+    /// Energy stored in soft-way penalties.
+    pub contact: f64,
+    /// Cumulative work of gravity, loads, moving obstacles and constraint reactions.
+    pub external_work: f64,
+    /// Cumulative viscous and friction dissipation.
+    pub dissipated: f64,
+}
+
+impl Energies {
+    /// Kinetic + internal + contact.
+    pub fn total(&self) -> f64 {
+        self.kinetic + self.internal + self.contact
+    }
+}
+
+/// What one step did.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct StepReport {
+    /// Step number (1-based).
+    pub step: usize,
+    /// Time at the end of the step [s].
+    pub time: f64,
+    /// The step size used [s].
+    pub time_step: f64,
+    /// Newton plus contact-set iterations (linear solves).
+    pub iterations: usize,
+    /// Final relative residual.
+    pub residual: f64,
+    /// Energies at the end of the step.
+    pub energies: Energies,
+    /// Largest penetration at the end of the step [m].
+    pub max_penetration: f64,
+    /// Active contacts at the end of the step.
+    pub active_contacts: usize,
+    /// Force that each body's constraints exert on it during the step [N], by body.
+    pub reactions: Vec<Vec<f64>>,
+}
+
+/// The evolving state: one serialisable value.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct State {
+    /// Steps taken.
+    pub step: usize,
+    /// Current time [s].
+    pub time: f64,
+    /// Nodal displacements from the reference configuration [m], D per node, bodies in order.
+    pub displacement: Vec<f64>,
+    /// Nodal velocities [m/s].
+    pub velocity: Vec<f64>,
+    /// Cumulative external work [J].
+    pub external_work: f64,
+    /// Cumulative dissipation [J].
+    pub dissipated_energy: f64,
+    /// Constant external nodal forces set through the API [N].
+    pub loads: Vec<f64>,
+}
+
+struct IterationSystem {
+    time_step: f64,
+    cholesky: SparseCholesky,
+}
+
+/// A simulation of deformable bodies in D dimensions.
+pub struct Simulation<const D: usize>
+where
+    Dim<D>: SpatialDim<D>,
+{
+    settings: Settings<D>,
+    bodies: Vec<Body<D>>,
+    node_offsets: Vec<usize>,
+    reference: Vec<SVector<f64, D>>,
+    table: CellTable,
+    pattern: Pattern,
+    integration: Vec<BodyIntegration>,
+    matrices: LinearMatrices,
+    prescribed: Vec<Option<f64>>,
+    gravity_force: Vec<f64>,
+    reference_energy: f64,
+    state: State,
+    system: Option<IterationSystem>,
+    warnings: Vec<String>,
+}
+
+/// 2D simulation.
+pub type Simulation2 = Simulation<2>;
+/// 3D simulation.
+pub type Simulation3 = Simulation<3>;
+
+/// Builds a [`Simulation`].
+#[derive(Debug, Clone)]
+pub struct SimulationBuilder<const D: usize>
+where
+    Dim<D>: SpatialDim<D>,
+{
+    settings: Settings<D>,
+    bodies: Vec<Body<D>>,
+}
+
+impl<const D: usize> Default for SimulationBuilder<D>
+where
+    Dim<D>: SpatialDim<D>,
+{
+    fn default() -> Self {
+        SimulationBuilder { settings: Settings::default(), bodies: Vec::new() }
+    }
+}
+
+impl<const D: usize> SimulationBuilder<D>
+where
+    Dim<D>: SpatialDim<D>,
+{
+    /// Default settings, no body.
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// Replaces all settings.
+    pub fn settings(mut self, settings: Settings<D>) -> Self {
+        self.settings = settings;
+        self
+    }
+
+    /// Time step h [s].
+    pub fn time_step(mut self, h: f64) -> Self {
+        self.settings.time_step = h;
+        self
+    }
+
+    /// alpha and beta of the scheme (validated by [`SimulationBuilder::build`]).
+    pub fn scheme(mut self, alpha: f64, beta: Beta) -> Self {
+        let b = match beta {
+            Beta::Energy => 1.0 - alpha,
+            Beta::Trapezoid => 0.5,
+            Beta::Value(b) => b,
+        };
+        self.settings.scheme = SpaceTimeScheme { alpha, beta: b };
+        self
+    }
+
+    /// Gravity [m/s^2].
+    pub fn gravity(mut self, g: SVector<f64, D>) -> Self {
+        self.settings.gravity = g;
+        self
+    }
+
+    /// Kinematics (2D: plane strain, plane stress, axisymmetric).
+    pub fn kinematics(mut self, k: Kinematics) -> Self {
+        self.settings.kinematics = k;
+        self
+    }
+
+    /// Mass matrix kind.
+    pub fn mass(mut self, m: MassKind) -> Self {
+        self.settings.mass = m;
+        self
+    }
+
+    /// Adds a body.
+    pub fn body(mut self, body: Body<D>) -> Self {
+        self.bodies.push(body);
+        self
+    }
+
+    /// Validates everything and assembles the matrices.
+    pub fn build(self) -> Result<Simulation<D>> {
+        Simulation::new(self.settings, self.bodies)
+    }
+}
+
+fn invalid(name: &str, found: impl std::fmt::Display, expected: &str) -> Error {
+    Error::InvalidParameter {
+        name: name.into(),
+        found: found.to_string(),
+        expected: expected.into(),
+    }
+}
+
+impl<const D: usize> Simulation<D>
+where
+    Dim<D>: SpatialDim<D>,
+{
+    /// A builder with default settings.
+    pub fn builder() -> SimulationBuilder<D> {
+        SimulationBuilder::new()
+    }
+
+    /// Validates the settings and bodies, assembles the matrices and sets the initial state.
+    pub fn new(settings: Settings<D>, bodies: Vec<Body<D>>) -> Result<Self> {
+        validate_settings(&settings)?;
+        if bodies.is_empty() {
+            return Err(invalid("bodies", "none", "at least one body"));
+        }
+        let mut node_offsets = Vec::with_capacity(bodies.len());
+        let mut reference = Vec::new();
+        let mut table = CellTable::default();
+        let mut integration = Vec::new();
+        for (b, body) in bodies.iter().enumerate() {
+            if bodies[..b].iter().any(|o| o.name == body.name) {
+                return Err(invalid("name", &body.name, "a unique body name"));
+            }
+            body.mesh.validate_topology(&body.name)?;
+            body.mesh.check_quality(&body.name)?;
+            body.material.validate()?;
+            if body.initial_angular_velocity.len() != <Dim<D>>::ANGULAR {
+                return Err(invalid(
+                    "initial_angular_velocity",
+                    format!("{} components", body.initial_angular_velocity.len()),
+                    &format!("{} component(s)", <Dim<D>>::ANGULAR),
+                ));
+            }
+            if settings.kinematics == Kinematics::Axisymmetric {
+                if let Some(n) = body.mesh.nodes.iter().position(|x| x[0] < -1e-12) {
+                    return Err(Error::Mesh {
+                        body: body.name.clone(),
+                        message: format!(
+                            "node {n} has r = x = {} < 0; expected r >= 0 in axisymmetric kinematics",
+                            body.mesh.nodes[n][0]
+                        ),
+                    });
+                }
+            }
+            let offset = reference.len();
+            node_offsets.push(offset);
+            reference.extend_from_slice(&body.mesh.nodes);
+            for block in &body.mesh.blocks {
+                table.push_block(b, block.kind, &block.connectivity, offset);
+            }
+            let tangent = body.material.linear_tangent(settings.kinematics).ok_or_else(|| {
+                Error::NotAvailable {
+                    feature: "nonlinear materials".into(),
+                    detail: "only linear_elastic is implemented".into(),
+                }
+            })?;
+            integration.push(BodyIntegration {
+                kinematics: settings.kinematics,
+                tangent,
+                density: body.material.density(),
+            });
+        }
+        let nodes = reference.len();
+        let pattern = Pattern::new::<D>(&table, nodes)?;
+        let matrices = assembly::assemble_linear::<D>(
+            &table,
+            &pattern,
+            &reference,
+            &integration,
+            settings.mass == MassKind::Lumped,
+        );
+
+        let ndof = nodes * D;
+        let mut prescribed = vec![None; ndof];
+        for (b, body) in bodies.iter().enumerate() {
+            for (c, constraint) in body.constraints.iter().enumerate() {
+                if constraint.velocity.len() != D {
+                    return Err(invalid(
+                        &format!("bodies.{b}.constraints.{c}.velocity"),
+                        format!("{} components", constraint.velocity.len()),
+                        &format!("{D} components"),
+                    ));
+                }
+                if constraint.nodes.is_empty() {
+                    return Err(Error::EmptySelection {
+                        what: format!("constraint {c}"),
+                        body: body.name.clone(),
+                        hint: "enlarge its region so that it contains nodes of the mesh".into(),
+                    });
+                }
+                for &n in &constraint.nodes {
+                    if n >= body.mesh.nodes.len() {
+                        return Err(Error::InvalidHandle(format!(
+                            "constraint {c} of body `{}` names node {n} of {}",
+                            body.name,
+                            body.mesh.nodes.len()
+                        )));
+                    }
+                    for (k, v) in constraint.velocity.iter().enumerate() {
+                        if let Some(v) = v {
+                            prescribed[(node_offsets[b] + n) * D + k] = Some(*v);
+                        }
+                    }
+                }
+            }
+        }
+
+        // Gravity as consistent nodal forces: M g.
+        let mut g_field = vec![0.0; ndof];
+        for n in 0..nodes {
+            for k in 0..D {
+                g_field[n * D + k] = settings.gravity[k];
+            }
+        }
+        let mut gravity_force = vec![0.0; ndof];
+        assembly::symmetric_mul_add(&matrices.mass, &g_field, 1.0, &mut gravity_force);
+
+        let mut velocity = vec![0.0; ndof];
+        for (b, body) in bodies.iter().enumerate() {
+            let centre = centre_of_mass(&matrices.mass, &reference, node_offsets[b], body.mesh.nodes.len());
+            for (n, x) in body.mesh.nodes.iter().enumerate() {
+                let v = body.initial_velocity
+                    + <Dim<D>>::spin_velocity(&body.initial_angular_velocity, &(x - centre));
+                for k in 0..D {
+                    velocity[(node_offsets[b] + n) * D + k] = v[k];
+                }
+            }
+        }
+        for (dof, p) in prescribed.iter().enumerate() {
+            if let Some(v) = p {
+                velocity[dof] = *v;
+            }
+        }
+        let mut warnings = Vec::new();
+        if let Some(w) = settings.scheme.stability_warning() {
+            warnings.push(w);
+        }
+        let state = State {
+            step: 0,
+            time: 0.0,
+            displacement: vec![0.0; ndof],
+            velocity,
+            external_work: 0.0,
+            dissipated_energy: 0.0,
+            loads: vec![0.0; ndof],
+        };
+        let mut sim = Simulation {
+            settings,
+            bodies,
+            node_offsets,
+            reference,
+            table,
+            pattern,
+            integration,
+            matrices,
+            prescribed,
+            gravity_force,
+            reference_energy: 0.0,
+            state,
+            system: None,
+            warnings,
+        };
+        sim.reference_energy = sim.energies().total();
+        Ok(sim)
+    }
+
+    /// The settings.
+    pub fn settings(&self) -> &Settings<D> {
+        &self.settings
+    }
+
+    /// The bodies.
+    pub fn bodies(&self) -> &[Body<D>] {
+        &self.bodies
+    }
+
+    /// The handle of the body called `name`.
+    pub fn body_id(&self, name: &str) -> Option<BodyId> {
+        self.bodies.iter().position(|b| b.name == name).map(BodyId)
+    }
+
+    /// The state (time, displacements, velocities, works).
+    pub fn state(&self) -> &State {
+        &self.state
+    }
+
+    /// Warnings gathered while building (stability window, ...).
+    pub fn warnings(&self) -> &[String] {
+        &self.warnings
+    }
+
+    /// Total number of nodes.
+    pub fn node_count(&self) -> usize {
+        self.reference.len()
+    }
+
+    /// The global index of a body's node.
+    pub fn global_node(&self, body: BodyId, node: usize) -> Result<usize> {
+        let b = self.bodies.get(body.0).ok_or_else(|| {
+            Error::InvalidHandle(format!("body {} of {}", body.0, self.bodies.len()))
+        })?;
+        if node >= b.mesh.nodes.len() {
+            return Err(Error::InvalidHandle(format!(
+                "node {node} of body `{}` ({} nodes)",
+                b.name,
+                b.mesh.nodes.len()
+            )));
+        }
+        Ok(self.node_offsets[body.0] + node)
+    }
+
+    /// Range of global nodes of a body.
+    pub fn body_nodes(&self, body: BodyId) -> std::ops::Range<usize> {
+        let start = self.node_offsets[body.0];
+        start..start + self.bodies[body.0].mesh.nodes.len()
+    }
+
+    fn node_vector(values: &[f64], node: usize) -> SVector<f64, D> {
+        SVector::from_column_slice(&values[node * D..node * D + D])
+    }
+
+    /// Displacement of a node [m].
+    pub fn displacement(&self, body: BodyId, node: usize) -> Result<SVector<f64, D>> {
+        Ok(Self::node_vector(&self.state.displacement, self.global_node(body, node)?))
+    }
+
+    /// Velocity of a node [m/s].
+    pub fn velocity(&self, body: BodyId, node: usize) -> Result<SVector<f64, D>> {
+        Ok(Self::node_vector(&self.state.velocity, self.global_node(body, node)?))
+    }
+
+    /// Current position of a node [m].
+    pub fn position(&self, body: BodyId, node: usize) -> Result<SVector<f64, D>> {
+        let g = self.global_node(body, node)?;
+        Ok(self.reference[g] + Self::node_vector(&self.state.displacement, g))
+    }
+
+    /// Current positions of all nodes [m].
+    pub fn positions(&self) -> Vec<SVector<f64, D>> {
+        (0..self.reference.len())
+            .map(|g| self.reference[g] + Self::node_vector(&self.state.displacement, g))
+            .collect()
+    }
+
+    /// Sets a node's velocity [m/s] (prescribed components keep their prescribed value).
+    pub fn set_velocity(&mut self, body: BodyId, node: usize, v: SVector<f64, D>) -> Result<()> {
+        let g = self.global_node(body, node)?;
+        for k in 0..D {
+            let dof = g * D + k;
+            self.state.velocity[dof] = self.prescribed[dof].unwrap_or(v[k]);
+        }
+        if self.state.step == 0 {
+            self.reference_energy = self.energies().total();
+        }
+        Ok(())
+    }
+
+    /// Sets a constant external force on a node [N] (per unit thickness in plane kinematics,
+    /// the total over the revolution in axisymmetric ones); it stays until changed.
+    pub fn set_nodal_force(&mut self, body: BodyId, node: usize, f: SVector<f64, D>) -> Result<()> {
+        let g = self.global_node(body, node)?;
+        self.state.loads[g * D..g * D + D].copy_from_slice(f.as_slice());
+        Ok(())
+    }
+
+    /// The sparsity pattern of the global matrices.
+    pub fn pattern(&self) -> &Pattern {
+        &self.pattern
+    }
+
+    /// The mass matrix (lower triangle) [kg].
+    pub fn mass_matrix(&self) -> &SparseColMat<usize, f64> {
+        &self.matrices.mass
+    }
+
+    /// The stiffness matrix (lower triangle) [N/m].
+    pub fn stiffness_matrix(&self) -> &SparseColMat<usize, f64> {
+        &self.matrices.stiffness
+    }
+
+    /// Total mass of a body [kg].
+    pub fn body_mass(&self, body: BodyId) -> f64 {
+        let range = self.body_nodes(body);
+        let mut e = vec![0.0; self.reference.len() * D];
+        for n in range {
+            e[n * D] = 1.0;
+        }
+        assembly::symmetric_dot(&self.matrices.mass, &e, &e)
+    }
+
+    /// Energies at the current state.
+    pub fn energies(&self) -> Energies {
+        let s = &self.state;
+        Energies {
+            kinetic: 0.5 * assembly::symmetric_dot(&self.matrices.mass, &s.velocity, &s.velocity),
+            internal: 0.5
+                * assembly::symmetric_dot(&self.matrices.stiffness, &s.displacement, &s.displacement),
+            contact: 0.0,
+            external_work: s.external_work,
+            dissipated: s.dissipated_energy,
+        }
+    }
+
+    /// The energy that stability is measured against: E(0) + |external work| + dissipated.
+    pub fn energy_reference(&self) -> f64 {
+        self.reference_energy + self.state.external_work.abs() + self.state.dissipated_energy
+    }
+
+    /// Energy at t = 0 [J].
+    pub fn initial_energy(&self) -> f64 {
+        self.reference_energy
+    }
+
+    /// Average Voigt stress of every cell, bodies in order [Pa].
+    pub fn cell_stresses(&self) -> Vec<crate::dim::Voigt> {
+        assembly::cell_stresses::<D>(&self.table, &self.reference, &self.integration, &self.state.displacement)
+    }
+
+    /// One step of the configured size.
+    pub fn step(&mut self) -> Result<StepReport> {
+        let h = self.settings.time_step;
+        self.advance(h, &mut NullRecorder)
+    }
+
+    /// One step of the configured size, observed by a recorder.
+    pub fn step_with(&mut self, recorder: &mut dyn Recorder<D>) -> Result<StepReport> {
+        let h = self.settings.time_step;
+        self.advance(h, recorder)
+    }
+
+    fn ensure_system(&mut self, h: f64) -> Result<()> {
+        if self.system.as_ref().is_some_and(|s| s.time_step == h) {
+            return Ok(());
+        }
+        let (_, d1) = self.settings.scheme.displacement_weights();
+        let a = self.iteration_matrix(h, d1);
+        let mut cholesky = match self.system.take() {
+            Some(s) => s.cholesky,
+            None => SparseCholesky::analyse(&a)?,
+        };
+        cholesky.factor(&a, self.state.step + 1)?;
+        self.system = Some(IterationSystem { time_step: h, cholesky });
+        Ok(())
+    }
+
+    /// `M/h + (alpha^2 h / 2) K` with prescribed rows and columns replaced by the identity
+    /// (scaled to the mean diagonal, for conditioning).
+    fn iteration_matrix(&self, h: f64, d1: f64) -> SparseColMat<usize, f64> {
+        let mut a = self.matrices.mass.clone();
+        let (m_vals, k_vals) = (self.matrices.mass.val(), self.matrices.stiffness.val());
+        let col_ptr = a.symbolic().col_ptr().to_vec();
+        let row_idx = a.symbolic().row_idx().to_vec();
+        let vals = a.val_mut();
+        for i in 0..vals.len() {
+            vals[i] = m_vals[i] / h + d1 * h * k_vals[i];
+        }
+        let mut diag_sum = 0.0;
+        for j in 0..col_ptr.len() - 1 {
+            for k in col_ptr[j]..col_ptr[j + 1] {
+                if row_idx[k] == j {
+                    diag_sum += vals[k];
+                }
+            }
+        }
+        let scale = diag_sum / (col_ptr.len() - 1).max(1) as f64;
+        for j in 0..col_ptr.len() - 1 {
+            for k in col_ptr[j]..col_ptr[j + 1] {
+                let i = row_idx[k];
+                if self.prescribed[i].is_some() || self.prescribed[j].is_some() {
+                    vals[k] = if i == j { scale } else { 0.0 };
+                }
+            }
+        }
+        a
+    }
+
+    /// One step of size `h` [s] observed by `recorder`. On error the state is left as it was
+    /// at the start of the step.
+    pub fn advance(&mut self, h: f64, recorder: &mut dyn Recorder<D>) -> Result<StepReport> {
+        if !(h > 0.0 && h.is_finite()) {
+            return Err(invalid("time_step", h, "a finite value > 0 [s]"));
+        }
+        let step = self.state.step + 1;
+        let t0 = self.state.time;
+        self.ensure_system(h)?;
+        recorder.step_start(self, step);
+
+        let scheme = self.settings.scheme;
+        let (d0, d1) = scheme.displacement_weights();
+        let ndof = self.state.velocity.len();
+        let v0 = self.state.velocity.clone();
+        let u0 = self.state.displacement.clone();
+        let f_ext: Vec<f64> =
+            self.gravity_force.iter().zip(&self.state.loads).map(|(g, l)| g + l).collect();
+
+        let mut v1 = v0.clone();
+        for (dof, p) in self.prescribed.iter().enumerate() {
+            if let Some(v) = p {
+                v1[dof] = *v;
+            }
+        }
+        let mut u_alpha = vec![0.0; ndof];
+        let mut inertia = vec![0.0; ndof];
+        let mut internal = vec![0.0; ndof];
+        let mut residual = vec![0.0; ndof];
+        let mut iterations = 0;
+        let relative;
+        loop {
+            for i in 0..ndof {
+                u_alpha[i] = u0[i] + h * (d0 * v0[i] + d1 * v1[i]);
+                inertia[i] = 0.0;
+                internal[i] = 0.0;
+            }
+            let dv: Vec<f64> = v1.iter().zip(&v0).map(|(a, b)| (a - b) / h).collect();
+            assembly::symmetric_mul_add(&self.matrices.mass, &dv, 1.0, &mut inertia);
+            assembly::symmetric_mul_add(&self.matrices.stiffness, &u_alpha, 1.0, &mut internal);
+            let mut free_norm2 = 0.0;
+            let mut scale: f64 = 0.0;
+            for i in 0..ndof {
+                residual[i] = inertia[i] + internal[i] - f_ext[i];
+                if self.prescribed[i].is_none() {
+                    free_norm2 += residual[i] * residual[i];
+                    scale = scale.max(inertia[i].abs()).max(internal[i].abs()).max(f_ext[i].abs());
+                }
+            }
+            let norm = free_norm2.sqrt();
+            let rel = if scale > 0.0 { norm / (scale * (ndof as f64).sqrt()) } else { 0.0 };
+            if !rel.is_finite() {
+                return Err(Error::Unstable {
+                    step,
+                    time: t0 + h,
+                    detail: "the residual became non-finite".into(),
+                });
+            }
+            if rel <= self.settings.tolerance {
+                relative = rel;
+                break;
+            }
+            if iterations >= self.settings.max_iterations {
+                return Err(Error::NotConverged {
+                    step,
+                    time: t0,
+                    iterations,
+                    residual: rel,
+                    tolerance: self.settings.tolerance,
+                });
+            }
+            let mut increment: Vec<f64> = residual
+                .iter()
+                .zip(&self.prescribed)
+                .map(|(r, p)| if p.is_some() { 0.0 } else { -r })
+                .collect();
+            if let Some(system) = &self.system {
+                system.cholesky.solve_in_place(&mut increment);
+            }
+            let mut inc2 = 0.0;
+            for i in 0..ndof {
+                if self.prescribed[i].is_none() {
+                    v1[i] += increment[i];
+                    inc2 += increment[i] * increment[i];
+                }
+            }
+            iterations += 1;
+            recorder.iteration(
+                self,
+                &IterationInfo {
+                    step,
+                    iteration: iterations,
+                    residual_norm: norm,
+                    relative_residual: rel,
+                    increment_norm: inc2.sqrt(),
+                    end_velocity: &v1,
+                },
+            );
+        }
+
+        // Reactions: what the constraints must supply for the balance to hold.
+        let mut reactions = vec![vec![0.0; D]; self.bodies.len()];
+        let mut work = 0.0;
+        let (b0, b1) = scheme.update_weights();
+        let mut u1 = vec![0.0; ndof];
+        for i in 0..ndof {
+            u1[i] = u0[i] + h * (b0 * v0[i] + b1 * v1[i]);
+            let du = u1[i] - u0[i];
+            let reaction = if self.prescribed[i].is_some() { residual[i] } else { 0.0 };
+            work += (f_ext[i] + reaction) * du;
+        }
+        for (b, r) in reactions.iter_mut().enumerate() {
+            for n in self.body_nodes(BodyId(b)) {
+                for k in 0..D {
+                    let dof = n * D + k;
+                    if self.prescribed[dof].is_some() {
+                        r[k] += residual[dof];
+                    }
+                }
+            }
+        }
+
+        let previous = std::mem::replace(
+            &mut self.state,
+            State {
+                step,
+                time: t0 + h,
+                displacement: u1,
+                velocity: v1,
+                external_work: 0.0,
+                dissipated_energy: 0.0,
+                loads: Vec::new(),
+            },
+        );
+        self.state.external_work = previous.external_work + work;
+        self.state.dissipated_energy = previous.dissipated_energy;
+        self.state.loads = previous.loads.clone();
+        let energies = self.energies();
+        let limit = 1e6 * self.energy_reference().max(f64::MIN_POSITIVE);
+        let finite = self.state.displacement.iter().chain(&self.state.velocity).all(|x| x.is_finite());
+        if !finite || !energies.total().is_finite() || energies.total() > limit {
+            let detail = if !finite || !energies.total().is_finite() {
+                "a displacement, velocity or energy became non-finite".to_string()
+            } else {
+                format!(
+                    "the total energy {:.3e} J exceeds 1e6 times its reference {:.3e} J \
+                     (E(0) + |external work| + dissipated), a growth by {:.2e}",
+                    energies.total(),
+                    self.energy_reference(),
+                    energies.total() / self.energy_reference().max(f64::MIN_POSITIVE)
+                )
+            };
+            self.state = previous;
+            return Err(Error::Unstable { step, time: t0 + h, detail });
+        }
+        let report = StepReport {
+            step,
+            time: t0 + h,
+            time_step: h,
+            iterations,
+            residual: relative,
+            energies,
+            max_penetration: 0.0,
+            active_contacts: 0,
+            reactions,
+        };
+        recorder.step_end(self, &report);
+        Ok(report)
+    }
+}
+
+fn validate_settings<const D: usize>(s: &Settings<D>) -> Result<()>
+where
+    Dim<D>: SpatialDim<D>,
+{
+    if !(s.time_step > 0.0 && s.time_step.is_finite()) {
+        return Err(invalid("time_step", s.time_step, "a finite value > 0 [s]"));
+    }
+    SpaceTimeScheme::new(s.scheme.alpha, Beta::Value(s.scheme.beta))?;
+    if !<Dim<D>>::supports(s.kinematics) {
+        return Err(invalid(
+            "kinematics",
+            format!("{:?}", s.kinematics),
+            if D == 2 { "plane_strain, plane_stress or axisymmetric" } else { "solid" },
+        ));
+    }
+    if s.max_iterations == 0 {
+        return Err(invalid("max_iterations", 0, "at least 1"));
+    }
+    if !(s.tolerance > 0.0 && s.tolerance < 1.0) {
+        return Err(invalid("tolerance", s.tolerance, "a value in (0, 1)"));
+    }
+    if s.gravity.iter().any(|g| !g.is_finite()) {
+        return Err(invalid("gravity", format!("{:?}", s.gravity.as_slice()), "finite components"));
+    }
+    Ok(())
+}
+
+/// Mass-weighted centre of the nodes `offset..offset + count`.
+fn centre_of_mass<const D: usize>(
+    mass: &SparseColMat<usize, f64>,
+    x: &[SVector<f64, D>],
+    offset: usize,
+    count: usize,
+) -> SVector<f64, D> {
+    let n = x.len();
+    let mut total = 0.0;
+    let mut moment = SVector::<f64, D>::zeros();
+    let mut e = vec![0.0; n * D];
+    for node in offset..offset + count {
+        e[node * D] = 1.0;
+    }
+    let mut me = vec![0.0; n * D];
+    assembly::symmetric_mul_add(mass, &e, 1.0, &mut me);
+    for node in offset..offset + count {
+        let m = me[node * D];
+        total += m;
+        moment += x[node] * m;
+    }
+    if total > 0.0 {
+        moment / total
+    } else {
+        x[offset..offset + count].iter().sum::<SVector<f64, D>>() / count.max(1) as f64
+    }
+}
