@@ -212,14 +212,15 @@ pub fn annulus(
     quad_grid(cells[0], cells[1], map, kind, true)
 }
 
-/// A convex polygon meshed by a transfinite (Coons) map of the unit square: the boundary is
+/// A convex polygon (at least 4 vertices) meshed by a transfinite (Coons) map of the unit square: the boundary is
 /// split into four sides at the vertices nearest to a quarter of the vertex count each;
 /// `cells = [n1, n2]` along the first and second sides.
 pub fn polygon(vertices: &[Vector2<f64>], cells: [usize; 2], kind: ElementKind) -> Result<Mesh<2>> {
     check_cells(cells)?;
     let mut v: Vec<Vector2<f64>> = vertices.to_vec();
-    if v.len() < 3 {
-        return Err(invalid("vertices", v.len(), "at least 3 vertices"));
+    // A quadrilateral map of a triangle needs a straight corner, which is degenerate.
+    if v.len() < 4 {
+        return Err(invalid("vertices", format!("{} vertices", v.len()), "at least 4 vertices"));
     }
     let signed_area: f64 =
         (0..v.len()).map(|i| v[i].perp(&v[(i + 1) % v.len()])).sum::<f64>() / 2.0;
@@ -234,18 +235,6 @@ pub fn polygon(vertices: &[Vector2<f64>], cells: [usize; 2], kind: ElementKind) 
         if (b - a).perp(&(c - b)) < -1e-12 * (b - a).norm() * (c - b).norm() {
             return Err(invalid("vertices", "a non-convex polygon", "a convex polygon"));
         }
-    }
-    // A triangle gets a fourth corner at the midpoint of its longest edge.
-    while v.len() < 4 {
-        let i = (0..v.len())
-            .max_by(|&i, &j| {
-                let li = (v[(i + 1) % v.len()] - v[i]).norm();
-                let lj = (v[(j + 1) % v.len()] - v[j]).norm();
-                li.total_cmp(&lj)
-            })
-            .unwrap_or(0);
-        let mid = (v[i] + v[(i + 1) % v.len()]) / 2.0;
-        v.insert(i + 1, mid);
     }
     let n = v.len();
     let corners = [0, (n as f64 / 4.0).round() as usize, n / 2, (3.0 * n as f64 / 4.0).round() as usize];
@@ -353,10 +342,8 @@ mod tests {
             m.check_quality("octagon").unwrap();
             assert!((measure(&m) - area).abs() < 1e-12, "{}", measure(&m));
         }
-        let tri = polygon(&[Vector2::zeros(), Vector2::new(1.0, 0.0), Vector2::new(0.0, 1.0)], [3, 3], ElementKind::Quad4)
-            .unwrap();
-        tri.check_quality("tri").unwrap();
-        assert!((measure(&tri) - 0.5).abs() < 1e-12);
+        let tri = [Vector2::zeros(), Vector2::new(1.0, 0.0), Vector2::new(0.0, 1.0)];
+        assert!(polygon(&tri, [3, 3], ElementKind::Quad4).is_err());
         assert!(polygon(&[Vector2::zeros(), Vector2::new(1.0, 0.0), Vector2::new(0.2, 0.2), Vector2::new(0.0, 1.0)], [2, 2], ElementKind::Quad4).is_err());
     }
 }
