@@ -33,6 +33,7 @@
 #![warn(missing_docs)]
 
 pub mod assembly;
+pub mod contact;
 pub mod dim;
 pub mod element;
 pub mod error;
