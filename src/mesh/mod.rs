@@ -1,7 +1,7 @@
 //! Meshes: nodes, cells, boundary extraction and quality checks.
 
 pub mod generators;
-
+pub mod gmsh;
 
 use std::collections::HashMap;
 
@@ -72,7 +72,11 @@ where
 {
     /// A mesh from nodes and one block of cells.
     pub fn new(nodes: Vec<SVector<f64, D>>, kind: ElementKind, connectivity: Vec<usize>) -> Self {
-        Mesh { nodes, blocks: vec![CellBlock { kind, connectivity }], node_sets: HashMap::new() }
+        Mesh {
+            nodes,
+            blocks: vec![CellBlock { kind, connectivity }],
+            node_sets: HashMap::new(),
+        }
     }
 
     /// Number of nodes.
@@ -88,7 +92,12 @@ where
     /// Checks that the element types match the dimension, that connectivity is in range and that
     /// every node is used. `body` names the mesh in messages.
     pub fn validate_topology(&self, body: &str) -> Result<()> {
-        let err = |message: String| Err(Error::Mesh { body: body.to_string(), message });
+        let err = |message: String| {
+            Err(Error::Mesh {
+                body: body.to_string(),
+                message,
+            })
+        };
         if self.nodes.is_empty() || self.cell_count() == 0 {
             return err("the mesh has no node or no cell; expected at least one cell".into());
         }
@@ -98,7 +107,11 @@ where
                 return err(format!(
                     "found {} cells in a {D}D simulation; expected {}",
                     block.kind.name(),
-                    if D == 2 { "tri3 or quad4" } else { "tet4 or hex8" }
+                    if D == 2 {
+                        "tri3 or quad4"
+                    } else {
+                        "tet4 or hex8"
+                    }
                 ));
             }
             if block.connectivity.len() % block.kind.nodes() != 0 {
@@ -117,7 +130,9 @@ where
             }
         }
         if let Some(n) = used.iter().position(|u| !u) {
-            return err(format!("node {n} belongs to no cell; expected every node to be used"));
+            return err(format!(
+                "node {n} belongs to no cell; expected every node to be used"
+            ));
         }
         for (n, x) in self.nodes.iter().enumerate() {
             if x.iter().any(|c| !c.is_finite()) {
@@ -150,7 +165,11 @@ where
                     return Err(Error::InvertedElement {
                         body: body.to_string(),
                         cell: offset + c,
-                        kind: if min_det < -floor { "inverted" } else { "degenerate" },
+                        kind: if min_det < -floor {
+                            "inverted"
+                        } else {
+                            "degenerate"
+                        },
                         jacobian: min_det,
                     });
                 }
@@ -200,7 +219,16 @@ where
                     let mut key = nodes.clone();
                     key.sort_unstable();
                     if seen.remove(&key).is_none() {
-                        seen.insert(key, (order, BoundaryFace { nodes, cell: (b, c) }));
+                        seen.insert(
+                            key,
+                            (
+                                order,
+                                BoundaryFace {
+                                    nodes,
+                                    cell: (b, c),
+                                },
+                            ),
+                        );
                         order += 1;
                     }
                 }
@@ -235,8 +263,11 @@ where
 
     /// The nodes on the boundary, sorted.
     pub fn boundary_nodes(&self) -> Vec<usize> {
-        let mut nodes: Vec<usize> =
-            self.boundary_faces().into_iter().flat_map(|f| f.nodes).collect();
+        let mut nodes: Vec<usize> = self
+            .boundary_faces()
+            .into_iter()
+            .flat_map(|f| f.nodes)
+            .collect();
         nodes.sort_unstable();
         nodes.dedup();
         nodes
@@ -281,8 +312,8 @@ mod tests {
     #[test]
     fn boundary_of_a_rectangle_is_closed_and_outward() {
         for kind in [ElementKind::Tri3, ElementKind::Quad4] {
-            let m = rectangle(Vector2::new(0.0, 0.0), Vector2::new(2.0, 1.0), [4, 3], kind)
-                .unwrap();
+            let m =
+                rectangle(Vector2::new(0.0, 0.0), Vector2::new(2.0, 1.0), [4, 3], kind).unwrap();
             let facets = m.boundary_facets();
             assert_eq!(facets.len(), 2 * (4 + 3));
             let mut perimeter = 0.0;
@@ -304,8 +335,13 @@ mod tests {
     #[test]
     fn boundary_of_a_box_encloses_its_volume() {
         for kind in [ElementKind::Tet4, ElementKind::Hex8] {
-            let m = cuboid(Vector3::zeros(), Vector3::new(1.0, 2.0, 3.0), [2, 3, 2], kind)
-                .unwrap();
+            let m = cuboid(
+                Vector3::zeros(),
+                Vector3::new(1.0, 2.0, 3.0),
+                [2, 3, 2],
+                kind,
+            )
+            .unwrap();
             // Divergence theorem: volume = 1/3 sum (x . n) area.
             let mut volume = 0.0;
             let mut area = 0.0;
@@ -322,23 +358,130 @@ mod tests {
 
     #[test]
     fn inverted_cell_is_reported() {
-        let mut m = rectangle(Vector2::zeros(), Vector2::new(1.0, 1.0), [2, 2], ElementKind::Quad4)
-            .unwrap();
+        let mut m = rectangle(
+            Vector2::zeros(),
+            Vector2::new(1.0, 1.0),
+            [2, 2],
+            ElementKind::Quad4,
+        )
+        .unwrap();
         m.check_quality("b").unwrap();
         m.blocks[0].connectivity.swap(1, 3); // reverse cell 0
         match m.check_quality("b") {
-            Err(Error::InvertedElement { cell: 0, kind: "inverted", .. }) => {}
+            Err(Error::InvertedElement {
+                cell: 0,
+                kind: "inverted",
+                ..
+            }) => {}
             other => panic!("{other:?}"),
         }
     }
 
     #[test]
     fn degenerate_cell_is_reported() {
-        let nodes = vec![Vector2::new(0.0, 0.0), Vector2::new(1.0, 0.0), Vector2::new(2.0, 0.0)];
+        let nodes = vec![
+            Vector2::new(0.0, 0.0),
+            Vector2::new(1.0, 0.0),
+            Vector2::new(2.0, 0.0),
+        ];
         let m = Mesh::new(nodes, ElementKind::Tri3, vec![0, 1, 2]);
         assert!(matches!(
             m.check_quality("b"),
-            Err(Error::InvertedElement { kind: "degenerate", .. })
+            Err(Error::InvertedElement {
+                kind: "degenerate",
+                ..
+            })
         ));
     }
+}
+
+/// Reads a Gmsh MSH file (2.2 or 4.1, ASCII or binary) as a D-dimensional mesh: the cells of
+/// the highest dimension form the body (they must be D-dimensional); every physical group
+/// becomes a named node set (the nodes of its elements, any dimension). Nodes used by no body
+/// cell are dropped and the rest renumbered in file order.
+pub fn from_gmsh_file<const D: usize>(path: &std::path::Path) -> Result<Mesh<D>>
+where
+    Dim<D>: SpatialDim<D>,
+{
+    let file_error = |message: String| Error::MeshFile {
+        file: path.to_path_buf(),
+        message,
+    };
+    let g = gmsh::read_gmsh(path).map_err(|e| file_error(e.to_string()))?;
+    from_gmsh(&g).map_err(file_error)
+}
+
+/// Converts a parsed Gmsh mesh (see [`from_gmsh_file`]).
+pub fn from_gmsh<const D: usize>(g: &gmsh::GmshMesh) -> std::result::Result<Mesh<D>, String>
+where
+    Dim<D>: SpatialDim<D>,
+{
+    use gmsh::GmshCellKind as G;
+    let top = g.highest_dimension().ok_or("the file has no element")?;
+    if top != D {
+        return Err(format!(
+            "found {top}D elements as the highest dimension; expected {D}D cells"
+        ));
+    }
+    let mut renumber = vec![usize::MAX; g.nodes.len()];
+    let mut nodes = Vec::new();
+    let mut blocks: Vec<CellBlock> = Vec::new();
+    for (e, el) in g.elements.iter().enumerate() {
+        if el.kind.dimension() != Some(D) {
+            continue;
+        }
+        let kind = match el.kind {
+            G::Tri3 => ElementKind::Tri3,
+            G::Quad4 => ElementKind::Quad4,
+            G::Tet4 => ElementKind::Tet4,
+            G::Hex8 => ElementKind::Hex8,
+            other => {
+                return Err(format!(
+                    "element {e} has Gmsh type {}; expected linear tri3, quad4, tet4 or hex8",
+                    other.gmsh_type()
+                ))
+            }
+        };
+        let block = match blocks.iter_mut().position(|b| b.kind == kind) {
+            Some(i) => &mut blocks[i],
+            None => {
+                blocks.push(CellBlock {
+                    kind,
+                    connectivity: Vec::new(),
+                });
+                blocks.last_mut().expect("just pushed")
+            }
+        };
+        for &n in &el.nodes {
+            if renumber[n] == usize::MAX {
+                renumber[n] = nodes.len();
+                let mut x = SVector::<f64, D>::zeros();
+                for k in 0..D {
+                    x[k] = g.nodes[n][k];
+                }
+                nodes.push(x);
+            }
+            block.connectivity.push(renumber[n]);
+        }
+    }
+    let mut node_sets: HashMap<String, Vec<usize>> = HashMap::new();
+    for (dim, tag, name) in &g.physical_names {
+        let mut set: Vec<usize> = g
+            .elements
+            .iter()
+            .filter(|el| {
+                el.physical_tag == Some(*tag) && el.kind.dimension() == Some(*dim as usize)
+            })
+            .flat_map(|el| el.nodes.iter().map(|&n| renumber[n]))
+            .filter(|&n| n != usize::MAX)
+            .collect();
+        set.sort_unstable();
+        set.dedup();
+        node_sets.insert(name.clone(), set);
+    }
+    Ok(Mesh {
+        nodes,
+        blocks,
+        node_sets,
+    })
 }
