@@ -634,16 +634,28 @@ where
         let s = &self.state;
         Energies {
             kinetic: 0.5 * assembly::symmetric_dot(&self.matrices.mass, &s.velocity, &s.velocity),
-            internal: 0.5
-                * assembly::symmetric_dot(
-                    &self.matrices.stiffness,
-                    &s.displacement,
-                    &s.displacement,
-                ),
+            internal: 0.5 * self.strain_energy_product(&s.displacement),
             contact: 0.0,
             external_work: s.external_work,
             dissipated: s.dissipated_energy,
         }
+    }
+
+    /// `u^T K u`, with each body's mean displacement removed first: `K` annihilates
+    /// translations, and removing them avoids the cancellation of large equal terms.
+    fn strain_energy_product(&self, u: &[f64]) -> f64 {
+        let mut w = u.to_vec();
+        for b in 0..self.bodies.len() {
+            let range = self.body_nodes(BodyId(b));
+            let count = range.len().max(1) as f64;
+            for k in 0..D {
+                let mean = range.clone().map(|n| u[n * D + k]).sum::<f64>() / count;
+                for n in range.clone() {
+                    w[n * D + k] -= mean;
+                }
+            }
+        }
+        assembly::symmetric_dot(&self.matrices.stiffness, &w, &w)
     }
 
     /// The energy that stability is measured against: E(0) + |external work| + dissipated.
@@ -664,6 +676,17 @@ where
             &self.integration,
             &self.state.displacement,
         )
+    }
+
+    /// Internal forces of displacements `u` (flat, D per node) integrated from the element
+    /// stresses [N].
+    pub fn internal_forces(&self, u: &[f64]) -> Vec<f64> {
+        assembly::internal_forces::<D>(&self.table, &self.reference, &self.integration, u)
+    }
+
+    /// Reference (undeformed) node positions, bodies in order [m].
+    pub fn reference_positions(&self) -> &[SVector<f64, D>] {
+        &self.reference
     }
 
     /// One step of the configured size.
@@ -768,21 +791,28 @@ where
                 inertia[i] = 0.0;
                 internal[i] = 0.0;
             }
-            let dv: Vec<f64> = v1.iter().zip(&v0).map(|(a, b)| (a - b) / h).collect();
-            assembly::symmetric_mul_add(&self.matrices.mass, &dv, 1.0, &mut inertia);
+            // Inertia M (v1 - v0) / h, with the two momenta kept apart for the residual scale.
+            let mut momentum1 = vec![0.0; ndof];
+            assembly::symmetric_mul_add(&self.matrices.mass, &v0, -1.0 / h, &mut inertia);
+            assembly::symmetric_mul_add(&self.matrices.mass, &v1, 1.0 / h, &mut momentum1);
             assembly::symmetric_mul_add(&self.matrices.stiffness, &u_alpha, 1.0, &mut internal);
             let mut free_norm2 = 0.0;
-            let mut scale: f64 = 0.0;
+            let mut scale2 = [0.0f64; 4];
             for i in 0..ndof {
+                let old = inertia[i];
+                inertia[i] += momentum1[i];
                 residual[i] = inertia[i] + internal[i] - f_ext[i];
                 if self.prescribed[i].is_none() {
                     free_norm2 += residual[i] * residual[i];
-                    scale = scale
-                        .max(inertia[i].abs())
-                        .max(internal[i].abs())
-                        .max(f_ext[i].abs());
                 }
+                // The scale includes prescribed dofs: at equilibrium the free-dof forces cancel,
+                // while the reactions carry the load level.
+                scale2[0] += old * old;
+                scale2[1] += momentum1[i] * momentum1[i];
+                scale2[2] += internal[i] * internal[i];
+                scale2[3] += f_ext[i] * f_ext[i];
             }
+            let scale = scale2.iter().fold(0.0f64, |m, s| m.max(s.sqrt()));
             let norm = free_norm2.sqrt();
             let rel = if scale > 0.0 {
                 norm / (scale * (ndof as f64).sqrt())
