@@ -208,16 +208,27 @@ fn cell_matrices<const D: usize>(
         for a in 0..n {
             b[a] = <Dim<D>>::strain_operator(body.kinematics, shape[a], &grads[a], position[0]);
         }
+        // K is symmetric: compute the blocks (bb, a) with bb >= a and mirror them after.
         for a in 0..n {
-            let cb = body.tangent * b[a];
-            for bb in 0..n {
-                let kab = b[bb].transpose() * cb * dv; // (D x 6)(6 x D): block (bb, a)
+            let cb = body.tangent * b[a] * dv;
+            for bb in a..n {
+                let kab = b[bb].transpose() * cb; // (D x 6)(6 x D): block (bb, a)
                 for i in 0..D {
                     for j in 0..D {
                         K[bb * D + i][a * D + j] += kab[(i, j)];
                     }
                 }
                 M[a][bb] += body.density * shape[a] * shape[bb] * dv;
+            }
+        }
+    }
+    for a in 0..n {
+        for bb in a + 1..n {
+            M[bb][a] = M[a][bb];
+            for i in 0..D {
+                for j in 0..D {
+                    K[a * D + j][bb * D + i] = K[bb * D + i][a * D + j];
+                }
             }
         }
     }
