@@ -31,6 +31,8 @@
 //! ```
 
 #![warn(missing_docs)]
+// Numerical kernels index several arrays by the same node or dof index.
+#![allow(clippy::needless_range_loop)]
 
 pub mod assembly;
 pub mod contact;
@@ -63,3 +65,12 @@ pub mod prelude {
     };
     pub use crate::time::{Beta, SpaceTimeScheme};
 }
+
+// The README's and the book's Rust examples run as doc tests (mdBook cannot link crates).
+#[cfg(doctest)]
+#[doc = include_str!("../README.md")]
+pub struct ReadmeDoctests;
+
+#[cfg(doctest)]
+#[doc = include_str!("../book/src/library.md")]
+pub struct BookLibraryDoctests;

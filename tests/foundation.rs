@@ -296,8 +296,8 @@ fn bar_period<const D: usize>(elements: usize, steps_per_period: usize) -> f64
 where
     Dim<D>: SpatialDim<D>,
 {
-    let (length, e, rho) = (1.0, 1.0, 1.0);
-    let period = 4.0 * length / (e / rho as f64).sqrt();
+    let (length, e, rho): (f64, f64, f64) = (1.0, 1.0, 1.0);
+    let period = 4.0 * length / (e / rho).sqrt();
     let h = period / steps_per_period as f64;
     let mesh = block::<D>([length, 0.05, 0.05], [elements, 1, 1], false);
     let body = Body::new("bar", mesh, material(e, 0.0, rho)).with_constraint_in_box(

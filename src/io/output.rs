@@ -65,7 +65,7 @@ pub struct Progress {
 #[derive(Debug)]
 pub struct RunFailure {
     /// The summary written to `summary.json`.
-    pub summary: Summary,
+    pub summary: Box<Summary>,
     /// The error.
     pub error: Error,
 }
@@ -303,14 +303,16 @@ pub fn run<const D: usize>(
     out: &Path,
     stem: &str,
     progress: &mut dyn FnMut(Progress),
-) -> std::result::Result<Summary, RunFailure>
+) -> std::result::Result<Summary, Box<RunFailure>>
 where
     Dim<D>: SpatialDim<D>,
 {
     let start = Instant::now();
-    let fail = |error: Error| RunFailure {
-        summary: empty_summary(),
-        error,
+    let fail = |error: Error| {
+        Box::new(RunFailure {
+            summary: Box::new(empty_summary()),
+            error,
+        })
     };
     if !scene.obstacles.is_empty() {
         return Err(fail(Error::NotAvailable {
@@ -435,8 +437,10 @@ where
     }
     let written = write_json(&out.join("summary.json"), &summary);
     match (error, written) {
-        (Some(error), _) => Err(RunFailure { summary, error }),
-        (None, Err(error)) => Err(RunFailure { summary, error }),
+        (Some(error), _) | (None, Err(error)) => Err(Box::new(RunFailure {
+            summary: Box::new(summary),
+            error,
+        })),
         (None, Ok(())) => Ok(summary),
     }
 }

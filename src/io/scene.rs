@@ -107,10 +107,11 @@ pub struct SimulationSection {
 }
 
 /// A friction law as written.
-#[derive(Debug, Clone, Deserialize, PartialEq)]
+#[derive(Debug, Clone, Deserialize, PartialEq, Default)]
 #[serde(tag = "law", rename_all = "snake_case", deny_unknown_fields)]
 pub enum FrictionSpec {
     /// No friction.
+    #[default]
     Frictionless,
     /// |F_t| <= mu F_n.
     Coulomb {
@@ -135,12 +136,6 @@ pub enum FrictionSpec {
         #[serde(default)]
         regularization: Option<f64>,
     },
-}
-
-impl Default for FrictionSpec {
-    fn default() -> Self {
-        FrictionSpec::Frictionless
-    }
 }
 
 /// `[contact]`.
