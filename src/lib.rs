@@ -37,6 +37,7 @@ pub mod contact;
 pub mod dim;
 pub mod element;
 pub mod error;
+pub mod geometry;
 pub mod material;
 pub mod mesh;
 pub mod recording;

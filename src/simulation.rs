@@ -127,7 +127,10 @@ where
         velocity: [Option<f64>; D],
     ) -> Self {
         let nodes = self.mesh.nodes_in_box(&min, &max);
-        self.constraints.push(Constraint { nodes, velocity: velocity.to_vec() });
+        self.constraints.push(Constraint {
+            nodes,
+            velocity: velocity.to_vec(),
+        });
         self
     }
 }
@@ -247,7 +250,10 @@ where
     Dim<D>: SpatialDim<D>,
 {
     fn default() -> Self {
-        SimulationBuilder { settings: Settings::default(), bodies: Vec::new() }
+        SimulationBuilder {
+            settings: Settings::default(),
+            bodies: Vec::new(),
+        }
     }
 }
 
@@ -371,12 +377,13 @@ where
             for block in &body.mesh.blocks {
                 table.push_block(b, block.kind, &block.connectivity, offset);
             }
-            let tangent = body.material.linear_tangent(settings.kinematics).ok_or_else(|| {
-                Error::NotAvailable {
+            let tangent = body
+                .material
+                .linear_tangent(settings.kinematics)
+                .ok_or_else(|| Error::NotAvailable {
                     feature: "nonlinear materials".into(),
                     detail: "only linear_elastic is implemented".into(),
-                }
-            })?;
+                })?;
             integration.push(BodyIntegration {
                 kinematics: settings.kinematics,
                 tangent,
@@ -440,7 +447,12 @@ where
 
         let mut velocity = vec![0.0; ndof];
         for (b, body) in bodies.iter().enumerate() {
-            let centre = centre_of_mass(&matrices.mass, &reference, node_offsets[b], body.mesh.nodes.len());
+            let centre = centre_of_mass(
+                &matrices.mass,
+                &reference,
+                node_offsets[b],
+                body.mesh.nodes.len(),
+            );
             for (n, x) in body.mesh.nodes.iter().enumerate() {
                 let v = body.initial_velocity
                     + <Dim<D>>::spin_velocity(&body.initial_angular_velocity, &(x - centre));
@@ -544,12 +556,18 @@ where
 
     /// Displacement of a node [m].
     pub fn displacement(&self, body: BodyId, node: usize) -> Result<SVector<f64, D>> {
-        Ok(Self::node_vector(&self.state.displacement, self.global_node(body, node)?))
+        Ok(Self::node_vector(
+            &self.state.displacement,
+            self.global_node(body, node)?,
+        ))
     }
 
     /// Velocity of a node [m/s].
     pub fn velocity(&self, body: BodyId, node: usize) -> Result<SVector<f64, D>> {
-        Ok(Self::node_vector(&self.state.velocity, self.global_node(body, node)?))
+        Ok(Self::node_vector(
+            &self.state.velocity,
+            self.global_node(body, node)?,
+        ))
     }
 
     /// Current position of a node [m].
@@ -617,7 +635,11 @@ where
         Energies {
             kinetic: 0.5 * assembly::symmetric_dot(&self.matrices.mass, &s.velocity, &s.velocity),
             internal: 0.5
-                * assembly::symmetric_dot(&self.matrices.stiffness, &s.displacement, &s.displacement),
+                * assembly::symmetric_dot(
+                    &self.matrices.stiffness,
+                    &s.displacement,
+                    &s.displacement,
+                ),
             contact: 0.0,
             external_work: s.external_work,
             dissipated: s.dissipated_energy,
@@ -636,7 +658,12 @@ where
 
     /// Average Voigt stress of every cell, bodies in order [Pa].
     pub fn cell_stresses(&self) -> Vec<crate::dim::Voigt> {
-        assembly::cell_stresses::<D>(&self.table, &self.reference, &self.integration, &self.state.displacement)
+        assembly::cell_stresses::<D>(
+            &self.table,
+            &self.reference,
+            &self.integration,
+            &self.state.displacement,
+        )
     }
 
     /// One step of the configured size.
@@ -662,7 +689,10 @@ where
             None => SparseCholesky::analyse(&a)?,
         };
         cholesky.factor(&a, self.state.step + 1)?;
-        self.system = Some(IterationSystem { time_step: h, cholesky });
+        self.system = Some(IterationSystem {
+            time_step: h,
+            cholesky,
+        });
         Ok(())
     }
 
@@ -713,8 +743,12 @@ where
         let ndof = self.state.velocity.len();
         let v0 = self.state.velocity.clone();
         let u0 = self.state.displacement.clone();
-        let f_ext: Vec<f64> =
-            self.gravity_force.iter().zip(&self.state.loads).map(|(g, l)| g + l).collect();
+        let f_ext: Vec<f64> = self
+            .gravity_force
+            .iter()
+            .zip(&self.state.loads)
+            .map(|(g, l)| g + l)
+            .collect();
 
         let mut v1 = v0.clone();
         for (dof, p) in self.prescribed.iter().enumerate() {
@@ -743,11 +777,18 @@ where
                 residual[i] = inertia[i] + internal[i] - f_ext[i];
                 if self.prescribed[i].is_none() {
                     free_norm2 += residual[i] * residual[i];
-                    scale = scale.max(inertia[i].abs()).max(internal[i].abs()).max(f_ext[i].abs());
+                    scale = scale
+                        .max(inertia[i].abs())
+                        .max(internal[i].abs())
+                        .max(f_ext[i].abs());
                 }
             }
             let norm = free_norm2.sqrt();
-            let rel = if scale > 0.0 { norm / (scale * (ndof as f64).sqrt()) } else { 0.0 };
+            let rel = if scale > 0.0 {
+                norm / (scale * (ndof as f64).sqrt())
+            } else {
+                0.0
+            };
             if !rel.is_finite() {
                 return Err(Error::Unstable {
                     step,
@@ -805,7 +846,11 @@ where
         for i in 0..ndof {
             u1[i] = u0[i] + h * (b0 * v0[i] + b1 * v1[i]);
             let du = u1[i] - u0[i];
-            let reaction = if self.prescribed[i].is_some() { residual[i] } else { 0.0 };
+            let reaction = if self.prescribed[i].is_some() {
+                residual[i]
+            } else {
+                0.0
+            };
             work += (f_ext[i] + reaction) * du;
         }
         for (b, r) in reactions.iter_mut().enumerate() {
@@ -836,7 +881,12 @@ where
         self.state.loads = previous.loads.clone();
         let energies = self.energies();
         let limit = 1e6 * self.energy_reference().max(f64::MIN_POSITIVE);
-        let finite = self.state.displacement.iter().chain(&self.state.velocity).all(|x| x.is_finite());
+        let finite = self
+            .state
+            .displacement
+            .iter()
+            .chain(&self.state.velocity)
+            .all(|x| x.is_finite());
         if !finite || !energies.total().is_finite() || energies.total() > limit {
             let detail = if !finite || !energies.total().is_finite() {
                 "a displacement, velocity or energy became non-finite".to_string()
@@ -850,7 +900,11 @@ where
                 )
             };
             self.state = previous;
-            return Err(Error::Unstable { step, time: t0 + h, detail });
+            return Err(Error::Unstable {
+                step,
+                time: t0 + h,
+                detail,
+            });
         }
         let report = StepReport {
             step,
@@ -880,7 +934,11 @@ where
         return Err(invalid(
             "kinematics",
             format!("{:?}", s.kinematics),
-            if D == 2 { "plane_strain, plane_stress or axisymmetric" } else { "solid" },
+            if D == 2 {
+                "plane_strain, plane_stress or axisymmetric"
+            } else {
+                "solid"
+            },
         ));
     }
     if s.max_iterations == 0 {
@@ -890,7 +948,11 @@ where
         return Err(invalid("tolerance", s.tolerance, "a value in (0, 1)"));
     }
     if s.gravity.iter().any(|g| !g.is_finite()) {
-        return Err(invalid("gravity", format!("{:?}", s.gravity.as_slice()), "finite components"));
+        return Err(invalid(
+            "gravity",
+            format!("{:?}", s.gravity.as_slice()),
+            "finite components",
+        ));
     }
     Ok(())
 }

@@ -58,7 +58,12 @@ impl CellTable {
             self.nodes.extend(cell.iter().map(|&i| i + node_offset));
         }
         let cells = first_cell..self.node_start.len();
-        self.segments.push(CellSegment { kind, body, cells, first_value });
+        self.segments.push(CellSegment {
+            kind,
+            body,
+            cells,
+            first_value,
+        });
     }
 
     /// Total number of values (lower-triangle triplets) of all cells for dimension `d`.
@@ -70,7 +75,10 @@ impl CellTable {
     }
 
     fn dimension(&self) -> usize {
-        self.segments.first().map(|s| s.kind.dimension()).unwrap_or(2)
+        self.segments
+            .first()
+            .map(|s| s.kind.dimension())
+            .unwrap_or(2)
     }
 
     /// The global nodes of cell `c`.
@@ -123,7 +131,10 @@ pub struct Pattern {
 
 impl std::fmt::Debug for Pattern {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.debug_struct("Pattern").field("size", &self.size).field("triplets", &self.triplets).finish()
+        f.debug_struct("Pattern")
+            .field("size", &self.size)
+            .field("triplets", &self.triplets)
+            .finish()
     }
 }
 
@@ -144,8 +155,16 @@ impl Pattern {
         }
         let triplets = pairs.len();
         let (symbolic, argsort) = SymbolicSparseColMat::try_new_from_indices(size, size, &pairs)
-            .map_err(|e| Error::Factorization { step: 0, message: format!("pattern: {e:?}") })?;
-        Ok(Pattern { size, symbolic, argsort, triplets })
+            .map_err(|e| Error::Factorization {
+                step: 0,
+                message: format!("pattern: {e:?}"),
+            })?;
+        Ok(Pattern {
+            size,
+            symbolic,
+            argsort,
+            triplets,
+        })
     }
 
     /// Sums per-cell triplet values into a matrix of this pattern.
@@ -217,7 +236,12 @@ pub fn spatial_gradients<const D: usize>(
     cell: &[usize],
     x: &[SVector<f64, D>],
     xi: [f64; 3],
-) -> ([f64; MAX_NODES], [SVector<f64, D>; MAX_NODES], SVector<f64, D>, f64)
+) -> (
+    [f64; MAX_NODES],
+    [SVector<f64, D>; MAX_NODES],
+    SVector<f64, D>,
+    f64,
+)
 where
     Dim<D>: SpatialDim<D>,
 {
@@ -296,10 +320,18 @@ where
         #[cfg(feature = "parallel")]
         {
             use rayon::prelude::*;
-            k_seg.par_chunks_mut(per).zip(m_seg.par_chunks_mut(per)).enumerate().for_each(work);
+            k_seg
+                .par_chunks_mut(per)
+                .zip(m_seg.par_chunks_mut(per))
+                .enumerate()
+                .for_each(work);
         }
         #[cfg(not(feature = "parallel"))]
-        k_seg.chunks_mut(per).zip(m_seg.chunks_mut(per)).enumerate().for_each(work);
+        k_seg
+            .chunks_mut(per)
+            .zip(m_seg.chunks_mut(per))
+            .enumerate()
+            .for_each(work);
     }
     (k_vals, m_vals)
 }
@@ -369,7 +401,12 @@ where
                 let (shape, grads, position, det) = spatial_gradients::<D>(seg.kind, cell, x, q.xi);
                 let mut strain = Voigt::zeros();
                 for (a, &node) in cell.iter().enumerate() {
-                    let b = <Dim<D>>::strain_operator(body.kinematics, shape[a], &grads[a], position[0]);
+                    let b = <Dim<D>>::strain_operator(
+                        body.kinematics,
+                        shape[a],
+                        &grads[a],
+                        position[0],
+                    );
                     let ua = SVector::<f64, D>::from_column_slice(&u[node * D..node * D + D]);
                     strain += b * ua;
                 }

@@ -35,37 +35,94 @@ pub struct QuadraturePoint {
 const G: f64 = 0.577_350_269_189_625_8; // 1/sqrt(3)
 
 const TRI3_RULE: [QuadraturePoint; 3] = [
-    QuadraturePoint { xi: [1.0 / 6.0, 1.0 / 6.0, 0.0], weight: 1.0 / 6.0 },
-    QuadraturePoint { xi: [2.0 / 3.0, 1.0 / 6.0, 0.0], weight: 1.0 / 6.0 },
-    QuadraturePoint { xi: [1.0 / 6.0, 2.0 / 3.0, 0.0], weight: 1.0 / 6.0 },
+    QuadraturePoint {
+        xi: [1.0 / 6.0, 1.0 / 6.0, 0.0],
+        weight: 1.0 / 6.0,
+    },
+    QuadraturePoint {
+        xi: [2.0 / 3.0, 1.0 / 6.0, 0.0],
+        weight: 1.0 / 6.0,
+    },
+    QuadraturePoint {
+        xi: [1.0 / 6.0, 2.0 / 3.0, 0.0],
+        weight: 1.0 / 6.0,
+    },
 ];
 
 const QUAD4_RULE: [QuadraturePoint; 4] = [
-    QuadraturePoint { xi: [-G, -G, 0.0], weight: 1.0 },
-    QuadraturePoint { xi: [G, -G, 0.0], weight: 1.0 },
-    QuadraturePoint { xi: [G, G, 0.0], weight: 1.0 },
-    QuadraturePoint { xi: [-G, G, 0.0], weight: 1.0 },
+    QuadraturePoint {
+        xi: [-G, -G, 0.0],
+        weight: 1.0,
+    },
+    QuadraturePoint {
+        xi: [G, -G, 0.0],
+        weight: 1.0,
+    },
+    QuadraturePoint {
+        xi: [G, G, 0.0],
+        weight: 1.0,
+    },
+    QuadraturePoint {
+        xi: [-G, G, 0.0],
+        weight: 1.0,
+    },
 ];
 
 // Degree-2 rule on the unit tetrahedron (exact for the consistent mass matrix).
 const TA: f64 = 0.585_410_196_624_968_5;
 const TB: f64 = 0.138_196_601_125_010_5;
 const TET4_RULE: [QuadraturePoint; 4] = [
-    QuadraturePoint { xi: [TB, TB, TB], weight: 1.0 / 24.0 },
-    QuadraturePoint { xi: [TA, TB, TB], weight: 1.0 / 24.0 },
-    QuadraturePoint { xi: [TB, TA, TB], weight: 1.0 / 24.0 },
-    QuadraturePoint { xi: [TB, TB, TA], weight: 1.0 / 24.0 },
+    QuadraturePoint {
+        xi: [TB, TB, TB],
+        weight: 1.0 / 24.0,
+    },
+    QuadraturePoint {
+        xi: [TA, TB, TB],
+        weight: 1.0 / 24.0,
+    },
+    QuadraturePoint {
+        xi: [TB, TA, TB],
+        weight: 1.0 / 24.0,
+    },
+    QuadraturePoint {
+        xi: [TB, TB, TA],
+        weight: 1.0 / 24.0,
+    },
 ];
 
 const HEX8_RULE: [QuadraturePoint; 8] = [
-    QuadraturePoint { xi: [-G, -G, -G], weight: 1.0 },
-    QuadraturePoint { xi: [G, -G, -G], weight: 1.0 },
-    QuadraturePoint { xi: [G, G, -G], weight: 1.0 },
-    QuadraturePoint { xi: [-G, G, -G], weight: 1.0 },
-    QuadraturePoint { xi: [-G, -G, G], weight: 1.0 },
-    QuadraturePoint { xi: [G, -G, G], weight: 1.0 },
-    QuadraturePoint { xi: [G, G, G], weight: 1.0 },
-    QuadraturePoint { xi: [-G, G, G], weight: 1.0 },
+    QuadraturePoint {
+        xi: [-G, -G, -G],
+        weight: 1.0,
+    },
+    QuadraturePoint {
+        xi: [G, -G, -G],
+        weight: 1.0,
+    },
+    QuadraturePoint {
+        xi: [G, G, -G],
+        weight: 1.0,
+    },
+    QuadraturePoint {
+        xi: [-G, G, -G],
+        weight: 1.0,
+    },
+    QuadraturePoint {
+        xi: [-G, -G, G],
+        weight: 1.0,
+    },
+    QuadraturePoint {
+        xi: [G, -G, G],
+        weight: 1.0,
+    },
+    QuadraturePoint {
+        xi: [G, G, G],
+        weight: 1.0,
+    },
+    QuadraturePoint {
+        xi: [-G, G, G],
+        weight: 1.0,
+    },
 ];
 
 const QUAD_CORNERS: [[f64; 2]; 4] = [[-1.0, -1.0], [1.0, -1.0], [1.0, 1.0], [-1.0, 1.0]];
@@ -119,7 +176,10 @@ impl ElementKind {
 
     /// Shape functions and their reference gradients at `xi`.
     pub fn shape(self, xi: [f64; 3]) -> ShapeValues {
-        let mut s = ShapeValues { n: [0.0; MAX_NODES], dn: [[0.0; 3]; MAX_NODES] };
+        let mut s = ShapeValues {
+            n: [0.0; MAX_NODES],
+            dn: [[0.0; 3]; MAX_NODES],
+        };
         let [x, y, z] = xi;
         match self {
             ElementKind::Tri3 => {
@@ -138,8 +198,11 @@ impl ElementKind {
             ElementKind::Quad4 => {
                 for (a, c) in QUAD_CORNERS.iter().enumerate() {
                     s.n[a] = 0.25 * (1.0 + c[0] * x) * (1.0 + c[1] * y);
-                    s.dn[a] =
-                        [0.25 * c[0] * (1.0 + c[1] * y), 0.25 * c[1] * (1.0 + c[0] * x), 0.0];
+                    s.dn[a] = [
+                        0.25 * c[0] * (1.0 + c[1] * y),
+                        0.25 * c[1] * (1.0 + c[0] * x),
+                        0.0,
+                    ];
                 }
             }
             ElementKind::Hex8 => {
@@ -160,10 +223,18 @@ impl ElementKind {
     /// Reference coordinates of the nodes (used to check Jacobians at the corners).
     pub fn node_coordinates(self) -> &'static [[f64; 3]] {
         const TRI: [[f64; 3]; 3] = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]];
-        const QUAD: [[f64; 3]; 4] =
-            [[-1.0, -1.0, 0.0], [1.0, -1.0, 0.0], [1.0, 1.0, 0.0], [-1.0, 1.0, 0.0]];
-        const TET: [[f64; 3]; 4] =
-            [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
+        const QUAD: [[f64; 3]; 4] = [
+            [-1.0, -1.0, 0.0],
+            [1.0, -1.0, 0.0],
+            [1.0, 1.0, 0.0],
+            [-1.0, 1.0, 0.0],
+        ];
+        const TET: [[f64; 3]; 4] = [
+            [0.0, 0.0, 0.0],
+            [1.0, 0.0, 0.0],
+            [0.0, 1.0, 0.0],
+            [0.0, 0.0, 1.0],
+        ];
         match self {
             ElementKind::Tri3 => &TRI,
             ElementKind::Quad4 => &QUAD,
@@ -205,8 +276,12 @@ impl ElementKind {
 mod tests {
     use super::*;
 
-    const ALL: [ElementKind; 4] =
-        [ElementKind::Tri3, ElementKind::Quad4, ElementKind::Tet4, ElementKind::Hex8];
+    const ALL: [ElementKind; 4] = [
+        ElementKind::Tri3,
+        ElementKind::Quad4,
+        ElementKind::Tet4,
+        ElementKind::Hex8,
+    ];
 
     #[test]
     fn partition_of_unity_and_gradients_sum_to_zero() {
@@ -230,7 +305,10 @@ mod tests {
                 let s = kind.shape(*xi);
                 for b in 0..kind.nodes() {
                     let expected = if a == b { 1.0 } else { 0.0 };
-                    assert!((s.n[b] - expected).abs() < 1e-14, "{kind:?} node {a} fn {b}");
+                    assert!(
+                        (s.n[b] - expected).abs() < 1e-14,
+                        "{kind:?} node {a} fn {b}"
+                    );
                 }
             }
         }

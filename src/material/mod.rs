@@ -24,7 +24,11 @@ pub struct LinearElastic {
 impl LinearElastic {
     /// A validated law.
     pub fn new(youngs_modulus: f64, poissons_ratio: f64, density: f64) -> Result<Self> {
-        let m = LinearElastic { youngs_modulus, poissons_ratio, density };
+        let m = LinearElastic {
+            youngs_modulus,
+            poissons_ratio,
+            density,
+        };
         m.validate()?;
         Ok(m)
     }
@@ -39,10 +43,18 @@ impl LinearElastic {
             })
         };
         if !(self.youngs_modulus > 0.0 && self.youngs_modulus.is_finite()) {
-            return bad("youngs_modulus", self.youngs_modulus, "a finite value > 0 [Pa]");
+            return bad(
+                "youngs_modulus",
+                self.youngs_modulus,
+                "a finite value > 0 [Pa]",
+            );
         }
         if !(self.poissons_ratio > -1.0 && self.poissons_ratio < 0.5) {
-            return bad("poissons_ratio", self.poissons_ratio, "a value in (-1, 0.5)");
+            return bad(
+                "poissons_ratio",
+                self.poissons_ratio,
+                "a value in (-1, 0.5)",
+            );
         }
         if !(self.density >= 0.0 && self.density.is_finite()) {
             return bad("density", self.density, "a finite value >= 0 [kg/m^3]");
@@ -166,7 +178,11 @@ mod tests {
     #[test]
     fn bar_wave_speed_with_zero_poisson_ratio() {
         let m = LinearElastic::new(4.0, 0.0, 1.0).unwrap();
-        for k in [Kinematics::PlaneStrain, Kinematics::PlaneStress, Kinematics::Solid] {
+        for k in [
+            Kinematics::PlaneStrain,
+            Kinematics::PlaneStress,
+            Kinematics::Solid,
+        ] {
             assert!((m.wave_speed(k) - 2.0).abs() < 1e-14);
         }
     }

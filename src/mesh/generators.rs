@@ -20,7 +20,11 @@ fn invalid(name: &str, found: impl std::fmt::Display, expected: &str) -> Error {
 
 fn check_cells<const N: usize>(cells: [usize; N]) -> Result<()> {
     if cells.iter().any(|&c| c == 0) {
-        return Err(invalid("cells", format!("{cells:?}"), "at least 1 cell in every direction"));
+        return Err(invalid(
+            "cells",
+            format!("{cells:?}"),
+            "at least 1 cell in every direction",
+        ));
     }
     Ok(())
 }
@@ -109,10 +113,20 @@ pub fn rectangle(
 ) -> Result<Mesh<2>> {
     check_cells(cells)?;
     if (0..2).any(|k| max[k] <= min[k]) {
-        return Err(invalid("max", format!("{max:?} with min {min:?}"), "max > min componentwise"));
+        return Err(invalid(
+            "max",
+            format!("{max:?} with min {min:?}"),
+            "max > min componentwise",
+        ));
     }
     let d = max - min;
-    quad_grid(cells[0], cells[1], |u, v| min + Vector2::new(u * d.x, v * d.y), kind, false)
+    quad_grid(
+        cells[0],
+        cells[1],
+        |u, v| min + Vector2::new(u * d.x, v * d.y),
+        kind,
+        false,
+    )
 }
 
 /// The box `[min, max]` divided into `cells = [nx, ny, nz]` hexahedra (or six tetrahedra each).
@@ -124,7 +138,11 @@ pub fn cuboid(
 ) -> Result<Mesh<3>> {
     check_cells(cells)?;
     if (0..3).any(|k| max[k] <= min[k]) {
-        return Err(invalid("max", format!("{max:?} with min {min:?}"), "max > min componentwise"));
+        return Err(invalid(
+            "max",
+            format!("{max:?} with min {min:?}"),
+            "max > min componentwise",
+        ));
     }
     let base = rectangle(
         Vector2::new(min.x, min.y),
@@ -149,7 +167,11 @@ pub fn extrude(
         return Err(invalid("length", z1 - z0, "a positive extrusion length"));
     }
     if base.blocks.iter().any(|b| b.kind != ElementKind::Quad4) {
-        return Err(invalid("element", "tri3 base", "a quad4 base mesh to extrude"));
+        return Err(invalid(
+            "element",
+            "tri3 base",
+            "a quad4 base mesh to extrude",
+        ));
     }
     let nb = base.nodes.len();
     let mut nodes = Vec::with_capacity(nb * (layers + 1));
@@ -158,8 +180,14 @@ pub fn extrude(
         nodes.extend(base.nodes.iter().map(|p| Vector3::new(p.x, p.y, z)));
     }
     // Kuhn paths from corner 0 to corner 6 of the hexahedron.
-    const KUHN: [[usize; 4]; 6] =
-        [[0, 1, 2, 6], [0, 1, 5, 6], [0, 3, 2, 6], [0, 3, 7, 6], [0, 4, 5, 6], [0, 4, 7, 6]];
+    const KUHN: [[usize; 4]; 6] = [
+        [0, 1, 2, 6],
+        [0, 1, 5, 6],
+        [0, 3, 2, 6],
+        [0, 3, 7, 6],
+        [0, 4, 5, 6],
+        [0, 4, 7, 6],
+    ];
     let mut conn = Vec::new();
     for l in 0..layers {
         for q in base.blocks.iter().flat_map(|b| b.cells()) {
@@ -202,7 +230,11 @@ pub fn annulus(
         ));
     }
     if cells[0] < 3 {
-        return Err(invalid("cells", format!("{cells:?}"), "at least 3 cells around"));
+        return Err(invalid(
+            "cells",
+            format!("{cells:?}"),
+            "at least 3 cells around",
+        ));
     }
     let map = |u: f64, v: f64| {
         let theta = 2.0 * std::f64::consts::PI * u;
@@ -220,12 +252,22 @@ pub fn polygon(vertices: &[Vector2<f64>], cells: [usize; 2], kind: ElementKind) 
     let mut v: Vec<Vector2<f64>> = vertices.to_vec();
     // A quadrilateral map of a triangle needs a straight corner, which is degenerate.
     if v.len() < 4 {
-        return Err(invalid("vertices", format!("{} vertices", v.len()), "at least 4 vertices"));
+        return Err(invalid(
+            "vertices",
+            format!("{} vertices", v.len()),
+            "at least 4 vertices",
+        ));
     }
-    let signed_area: f64 =
-        (0..v.len()).map(|i| v[i].perp(&v[(i + 1) % v.len()])).sum::<f64>() / 2.0;
+    let signed_area: f64 = (0..v.len())
+        .map(|i| v[i].perp(&v[(i + 1) % v.len()]))
+        .sum::<f64>()
+        / 2.0;
     if signed_area.abs() < 1e-300 {
-        return Err(invalid("vertices", "a degenerate polygon", "a convex polygon of positive area"));
+        return Err(invalid(
+            "vertices",
+            "a degenerate polygon",
+            "a convex polygon of positive area",
+        ));
     }
     if signed_area < 0.0 {
         v.reverse();
@@ -233,11 +275,20 @@ pub fn polygon(vertices: &[Vector2<f64>], cells: [usize; 2], kind: ElementKind) 
     for i in 0..v.len() {
         let (a, b, c) = (v[i], v[(i + 1) % v.len()], v[(i + 2) % v.len()]);
         if (b - a).perp(&(c - b)) < -1e-12 * (b - a).norm() * (c - b).norm() {
-            return Err(invalid("vertices", "a non-convex polygon", "a convex polygon"));
+            return Err(invalid(
+                "vertices",
+                "a non-convex polygon",
+                "a convex polygon",
+            ));
         }
     }
     let n = v.len();
-    let corners = [0, (n as f64 / 4.0).round() as usize, n / 2, (3.0 * n as f64 / 4.0).round() as usize];
+    let corners = [
+        0,
+        (n as f64 / 4.0).round() as usize,
+        n / 2,
+        (3.0 * n as f64 / 4.0).round() as usize,
+    ];
     // Side k runs from corner k to corner k+1 along the boundary.
     let sides: Vec<Vec<Vector2<f64>>> = (0..4)
         .map(|k| {
@@ -265,7 +316,10 @@ pub fn polygon(vertices: &[Vector2<f64>], cells: [usize; 2], kind: ElementKind) 
         let top = along(&sides[2], 1.0 - u);
         let left = along(&sides[3], 1.0 - w);
         (1.0 - w) * bottom + w * top + (1.0 - u) * left + u * right
-            - ((1.0 - u) * (1.0 - w) * p00 + u * (1.0 - w) * p10 + u * w * p11 + (1.0 - u) * w * p01)
+            - ((1.0 - u) * (1.0 - w) * p00
+                + u * (1.0 - w) * p10
+                + u * w * p11
+                + (1.0 - u) * w * p01)
     };
     quad_grid(cells[0], cells[1], map, kind, false)
 }
@@ -302,12 +356,19 @@ mod tests {
     #[test]
     fn generated_measures_are_exact() {
         for kind in [ElementKind::Tri3, ElementKind::Quad4] {
-            let m = rectangle(Vector2::new(1.0, 2.0), Vector2::new(4.0, 3.0), [5, 2], kind).unwrap();
+            let m =
+                rectangle(Vector2::new(1.0, 2.0), Vector2::new(4.0, 3.0), [5, 2], kind).unwrap();
             m.check_quality("r").unwrap();
             assert!((measure(&m) - 3.0).abs() < 1e-12);
         }
         for kind in [ElementKind::Tet4, ElementKind::Hex8] {
-            let m = cuboid(Vector3::zeros(), Vector3::new(1.0, 2.0, 0.5), [3, 2, 2], kind).unwrap();
+            let m = cuboid(
+                Vector3::zeros(),
+                Vector3::new(1.0, 2.0, 0.5),
+                [3, 2, 2],
+                kind,
+            )
+            .unwrap();
             m.check_quality("b").unwrap();
             assert!((measure(&m) - 1.0).abs() < 1e-12);
         }
@@ -315,7 +376,14 @@ mod tests {
 
     #[test]
     fn annulus_area_converges_to_the_ring_area() {
-        let m = annulus(Vector2::new(0.0, 1.0), 0.8, 1.0, [256, 2], ElementKind::Quad4).unwrap();
+        let m = annulus(
+            Vector2::new(0.0, 1.0),
+            0.8,
+            1.0,
+            [256, 2],
+            ElementKind::Quad4,
+        )
+        .unwrap();
         m.check_quality("ring").unwrap();
         // The nodes lie on the circles: the mesh is the ring between two inscribed 256-gons.
         let n = 256.0;
@@ -342,8 +410,22 @@ mod tests {
             m.check_quality("octagon").unwrap();
             assert!((measure(&m) - area).abs() < 1e-12, "{}", measure(&m));
         }
-        let tri = [Vector2::zeros(), Vector2::new(1.0, 0.0), Vector2::new(0.0, 1.0)];
+        let tri = [
+            Vector2::zeros(),
+            Vector2::new(1.0, 0.0),
+            Vector2::new(0.0, 1.0),
+        ];
         assert!(polygon(&tri, [3, 3], ElementKind::Quad4).is_err());
-        assert!(polygon(&[Vector2::zeros(), Vector2::new(1.0, 0.0), Vector2::new(0.2, 0.2), Vector2::new(0.0, 1.0)], [2, 2], ElementKind::Quad4).is_err());
+        assert!(polygon(
+            &[
+                Vector2::zeros(),
+                Vector2::new(1.0, 0.0),
+                Vector2::new(0.2, 0.2),
+                Vector2::new(0.0, 1.0)
+            ],
+            [2, 2],
+            ElementKind::Quad4
+        )
+        .is_err());
     }
 }

@@ -2,7 +2,6 @@
 
 pub mod generators;
 
-
 use std::collections::HashMap;
 
 use nalgebra::{SMatrix, SVector};
@@ -72,7 +71,11 @@ where
 {
     /// A mesh from nodes and one block of cells.
     pub fn new(nodes: Vec<SVector<f64, D>>, kind: ElementKind, connectivity: Vec<usize>) -> Self {
-        Mesh { nodes, blocks: vec![CellBlock { kind, connectivity }], node_sets: HashMap::new() }
+        Mesh {
+            nodes,
+            blocks: vec![CellBlock { kind, connectivity }],
+            node_sets: HashMap::new(),
+        }
     }
 
     /// Number of nodes.
@@ -88,7 +91,12 @@ where
     /// Checks that the element types match the dimension, that connectivity is in range and that
     /// every node is used. `body` names the mesh in messages.
     pub fn validate_topology(&self, body: &str) -> Result<()> {
-        let err = |message: String| Err(Error::Mesh { body: body.to_string(), message });
+        let err = |message: String| {
+            Err(Error::Mesh {
+                body: body.to_string(),
+                message,
+            })
+        };
         if self.nodes.is_empty() || self.cell_count() == 0 {
             return err("the mesh has no node or no cell; expected at least one cell".into());
         }
@@ -98,7 +106,11 @@ where
                 return err(format!(
                     "found {} cells in a {D}D simulation; expected {}",
                     block.kind.name(),
-                    if D == 2 { "tri3 or quad4" } else { "tet4 or hex8" }
+                    if D == 2 {
+                        "tri3 or quad4"
+                    } else {
+                        "tet4 or hex8"
+                    }
                 ));
             }
             if block.connectivity.len() % block.kind.nodes() != 0 {
@@ -117,7 +129,9 @@ where
             }
         }
         if let Some(n) = used.iter().position(|u| !u) {
-            return err(format!("node {n} belongs to no cell; expected every node to be used"));
+            return err(format!(
+                "node {n} belongs to no cell; expected every node to be used"
+            ));
         }
         for (n, x) in self.nodes.iter().enumerate() {
             if x.iter().any(|c| !c.is_finite()) {
@@ -150,7 +164,11 @@ where
                     return Err(Error::InvertedElement {
                         body: body.to_string(),
                         cell: offset + c,
-                        kind: if min_det < -floor { "inverted" } else { "degenerate" },
+                        kind: if min_det < -floor {
+                            "inverted"
+                        } else {
+                            "degenerate"
+                        },
                         jacobian: min_det,
                     });
                 }
@@ -200,7 +218,16 @@ where
                     let mut key = nodes.clone();
                     key.sort_unstable();
                     if seen.remove(&key).is_none() {
-                        seen.insert(key, (order, BoundaryFace { nodes, cell: (b, c) }));
+                        seen.insert(
+                            key,
+                            (
+                                order,
+                                BoundaryFace {
+                                    nodes,
+                                    cell: (b, c),
+                                },
+                            ),
+                        );
                         order += 1;
                     }
                 }
@@ -235,8 +262,11 @@ where
 
     /// The nodes on the boundary, sorted.
     pub fn boundary_nodes(&self) -> Vec<usize> {
-        let mut nodes: Vec<usize> =
-            self.boundary_faces().into_iter().flat_map(|f| f.nodes).collect();
+        let mut nodes: Vec<usize> = self
+            .boundary_faces()
+            .into_iter()
+            .flat_map(|f| f.nodes)
+            .collect();
         nodes.sort_unstable();
         nodes.dedup();
         nodes
@@ -281,8 +311,8 @@ mod tests {
     #[test]
     fn boundary_of_a_rectangle_is_closed_and_outward() {
         for kind in [ElementKind::Tri3, ElementKind::Quad4] {
-            let m = rectangle(Vector2::new(0.0, 0.0), Vector2::new(2.0, 1.0), [4, 3], kind)
-                .unwrap();
+            let m =
+                rectangle(Vector2::new(0.0, 0.0), Vector2::new(2.0, 1.0), [4, 3], kind).unwrap();
             let facets = m.boundary_facets();
             assert_eq!(facets.len(), 2 * (4 + 3));
             let mut perimeter = 0.0;
@@ -304,8 +334,13 @@ mod tests {
     #[test]
     fn boundary_of_a_box_encloses_its_volume() {
         for kind in [ElementKind::Tet4, ElementKind::Hex8] {
-            let m = cuboid(Vector3::zeros(), Vector3::new(1.0, 2.0, 3.0), [2, 3, 2], kind)
-                .unwrap();
+            let m = cuboid(
+                Vector3::zeros(),
+                Vector3::new(1.0, 2.0, 3.0),
+                [2, 3, 2],
+                kind,
+            )
+            .unwrap();
             // Divergence theorem: volume = 1/3 sum (x . n) area.
             let mut volume = 0.0;
             let mut area = 0.0;
@@ -322,23 +357,39 @@ mod tests {
 
     #[test]
     fn inverted_cell_is_reported() {
-        let mut m = rectangle(Vector2::zeros(), Vector2::new(1.0, 1.0), [2, 2], ElementKind::Quad4)
-            .unwrap();
+        let mut m = rectangle(
+            Vector2::zeros(),
+            Vector2::new(1.0, 1.0),
+            [2, 2],
+            ElementKind::Quad4,
+        )
+        .unwrap();
         m.check_quality("b").unwrap();
         m.blocks[0].connectivity.swap(1, 3); // reverse cell 0
         match m.check_quality("b") {
-            Err(Error::InvertedElement { cell: 0, kind: "inverted", .. }) => {}
+            Err(Error::InvertedElement {
+                cell: 0,
+                kind: "inverted",
+                ..
+            }) => {}
             other => panic!("{other:?}"),
         }
     }
 
     #[test]
     fn degenerate_cell_is_reported() {
-        let nodes = vec![Vector2::new(0.0, 0.0), Vector2::new(1.0, 0.0), Vector2::new(2.0, 0.0)];
+        let nodes = vec![
+            Vector2::new(0.0, 0.0),
+            Vector2::new(1.0, 0.0),
+            Vector2::new(2.0, 0.0),
+        ];
         let m = Mesh::new(nodes, ElementKind::Tri3, vec![0, 1, 2]);
         assert!(matches!(
             m.check_quality("b"),
-            Err(Error::InvertedElement { kind: "degenerate", .. })
+            Err(Error::InvertedElement {
+                kind: "degenerate",
+                ..
+            })
         ));
     }
 }

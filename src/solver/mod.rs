@@ -17,16 +17,25 @@ pub struct SparseCholesky {
 
 impl std::fmt::Debug for SparseCholesky {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.debug_struct("SparseCholesky").field("factored", &self.factor.is_some()).finish()
+        f.debug_struct("SparseCholesky")
+            .field("factored", &self.factor.is_some())
+            .finish()
     }
 }
 
 impl SparseCholesky {
     /// Symbolic analysis of a matrix stored as its lower triangle.
     pub fn analyse(matrix: &SparseColMat<usize, f64>) -> Result<Self> {
-        let symbolic = SymbolicLlt::try_new(matrix.symbolic().rb(), Side::Lower)
-            .map_err(|e| Error::Factorization { step: 0, message: format!("{e:?}") })?;
-        Ok(SparseCholesky { symbolic, factor: None })
+        let symbolic = SymbolicLlt::try_new(matrix.symbolic().rb(), Side::Lower).map_err(|e| {
+            Error::Factorization {
+                step: 0,
+                message: format!("{e:?}"),
+            }
+        })?;
+        Ok(SparseCholesky {
+            symbolic,
+            factor: None,
+        })
     }
 
     /// Numeric factorisation of a matrix with the analysed pattern; `step` names the step in
@@ -79,7 +88,11 @@ mod tests {
             let mut b = vec![0.0; n];
             crate::assembly::symmetric_mul_add(&a, &x_true, 1.0, &mut b);
             chol.solve_in_place(&mut b);
-            let err: f64 = b.iter().zip(&x_true).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max);
+            let err: f64 = b
+                .iter()
+                .zip(&x_true)
+                .map(|(a, b)| (a - b).abs())
+                .fold(0.0, f64::max);
             assert!(err < 1e-12, "{err}");
         }
     }

@@ -37,7 +37,10 @@ pub struct SpaceTimeScheme {
 
 impl Default for SpaceTimeScheme {
     fn default() -> Self {
-        SpaceTimeScheme { alpha: 0.75, beta: 0.25 }
+        SpaceTimeScheme {
+            alpha: 0.75,
+            beta: 0.25,
+        }
     }
 }
 
@@ -90,7 +93,8 @@ impl SpaceTimeScheme {
         if self.is_unconditionally_stable() {
             return None;
         }
-        let limit = if self.alpha < std::f64::consts::FRAC_1_SQRT_2 && self.beta == 1.0 - self.alpha {
+        let limit = if self.alpha < std::f64::consts::FRAC_1_SQRT_2 && self.beta == 1.0 - self.alpha
+        {
             format!(
                 "; stable only while k h^2 / m <= {:.4}",
                 4.0 / (1.0 - 2.0 * self.alpha * self.alpha)
@@ -162,7 +166,10 @@ mod tests {
             let s = SpaceTimeScheme::new(alpha, Beta::Energy).unwrap();
             for kappa in kappas() {
                 let det = s.transfer_matrix(kappa).determinant();
-                assert!((det - 1.0).abs() < 1e-9, "alpha {alpha} kappa {kappa}: {det}");
+                assert!(
+                    (det - 1.0).abs() < 1e-9,
+                    "alpha {alpha} kappa {kappa}: {det}"
+                );
             }
         }
     }
@@ -187,7 +194,10 @@ mod tests {
             let limit = SpaceTimeScheme::stiff_limit_radius(alpha);
             assert!(limit > 1.0);
             let r = s.spectral_radius(1e12);
-            assert!((r - limit).abs() < 1e-4 * limit, "alpha {alpha}: {r} vs {limit}");
+            assert!(
+                (r - limit).abs() < 1e-4 * limit,
+                "alpha {alpha}: {r} vs {limit}"
+            );
             // Stable up to kappa = 4 / (1 - 2 alpha^2), unstable beyond.
             let edge = 4.0 / (1.0 - 2.0 * alpha * alpha);
             assert!(s.spectral_radius(0.99 * edge) <= 1.0 + 1e-9);
@@ -197,7 +207,10 @@ mod tests {
 
     #[test]
     fn window_interior_damps_stiff_modes() {
-        let s = SpaceTimeScheme { alpha: 0.75, beta: 0.281 };
+        let s = SpaceTimeScheme {
+            alpha: 0.75,
+            beta: 0.281,
+        };
         assert!(s.is_unconditionally_stable());
         let r = s.spectral_radius(1e10);
         assert!((r - 0.943).abs() < 2e-3, "{r}");
