@@ -40,7 +40,9 @@ mod sealed {
 }
 
 /// Dimension-specific operations; implemented for `Dim<2>` and `Dim<3>` only.
-pub trait SpatialDim<const D: usize>: sealed::Sealed + Send + Sync + 'static {
+pub trait SpatialDim<const D: usize>:
+    sealed::Sealed + crate::geometry::GeometryDim<D> + Send + Sync + 'static
+{
     /// Number of angular velocity components (1 in 2D, 3 in 3D).
     const ANGULAR: usize;
 

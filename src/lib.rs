@@ -39,6 +39,7 @@ pub mod contact;
 pub mod dim;
 pub mod element;
 pub mod error;
+pub mod geometry;
 pub mod io;
 pub mod material;
 pub mod mesh;

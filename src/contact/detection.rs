@@ -1,0 +1,855 @@
+//! Contact detection: which slave nodes touch which master surfaces, with the signed gap of
+//! method.md section 2.
+//!
+//! * **Slaves** are the boundary nodes of every body; **masters** are the rigid obstacles and
+//!   the boundary facets (segments in 2D, triangles in 3D) of every body.
+//! * **Broad phase** ([`Detector::update_candidates`]): each facet's box swept over the step (its
+//!   nodes at `x0` and `x1`, grown by [`DetectionOptions::margin`]) sits in a bounding-volume
+//!   hierarchy built once and refitted per call; each slave's segment `x0 -> x1` is tested
+//!   against it and against every obstacle's region swept between its translations at t0 and
+//!   t1. A node that crosses a thin body within one step is therefore caught.
+//! * **Narrow phase** ([`Detector::pairs`]): for each slave and each master body (or obstacle)
+//!   among the candidates, the closest facet, its closest point Q, the feature holding Q, the
+//!   barycentric weights of Q, the facet's outward normal n and the gap `g = (x_P - Q) . n`.
+//! * **Deformable against deformable**: every body's nodes are slaves of every other body's
+//!   facets, so both surfaces act as master (two passes, symmetric); a resolution method that
+//!   wants a single pass keeps one of the two pairs.
+//! * **Self-contact** (option): a node is never paired with the facets that share it nor with
+//!   their immediate neighbours (facets sharing a node with those), and only with facets that
+//!   face it (the node's averaged outward normal and the facet's normal point against each
+//!   other).
+
+use std::collections::HashMap;
+
+use nalgebra::SVector;
+
+use crate::contact::obstacle::{Obstacle, ObstacleShape};
+use crate::dim::{Dim, SpatialDim};
+pub use crate::geometry::Feature;
+use crate::geometry::{Aabb, BoxTree, GeometryDim};
+use crate::mesh::Mesh;
+
+/// The surfaces that can touch: every body's boundary facets and boundary nodes, in global node
+/// ids (a body's local node `i` is global node `node_offsets[body] + i`).
+#[derive(Debug, Clone)]
+pub struct ContactSurface<const D: usize> {
+    facets: Vec<[usize; D]>,
+    facet_body: Vec<usize>,
+    slaves: Vec<usize>,
+    slave_body: Vec<usize>,
+    /// CSR: the facets around each global node.
+    node_facet_offsets: Vec<usize>,
+    node_facets: Vec<usize>,
+}
+
+impl<const D: usize> ContactSurface<D>
+where
+    Dim<D>: SpatialDim<D>,
+{
+    /// The boundary facets (outward, quadrangles split) and boundary nodes of the bodies.
+    pub fn from_bodies(meshes: &[&Mesh<D>], node_offsets: &[usize]) -> Self {
+        let facets: Vec<Vec<[usize; D]>> = meshes.iter().map(|m| m.boundary_facets()).collect();
+        Self::from_facets(&facets, node_offsets)
+    }
+
+    /// A surface from each body's facets in local node ids, outward oriented (2D: the body on
+    /// the left of each segment; 3D: counter-clockwise seen from outside). The slaves are the
+    /// nodes of the facets.
+    ///
+    /// # Panics
+    /// If `bodies` and `node_offsets` differ in length.
+    pub fn from_facets(bodies: &[Vec<[usize; D]>], node_offsets: &[usize]) -> Self {
+        assert_eq!(bodies.len(), node_offsets.len(), "one node offset per body");
+        let mut facets = Vec::new();
+        let mut facet_body = Vec::new();
+        for (b, (fs, &off)) in bodies.iter().zip(node_offsets).enumerate() {
+            for f in fs {
+                facets.push(f.map(|i| i + off));
+                facet_body.push(b);
+            }
+        }
+        let node_count = facets.iter().flatten().map(|&i| i + 1).max().unwrap_or(0);
+        let mut node_facet_offsets = vec![0usize; node_count + 1];
+        for f in &facets {
+            for &v in f {
+                node_facet_offsets[v + 1] += 1;
+            }
+        }
+        for i in 0..node_count {
+            node_facet_offsets[i + 1] += node_facet_offsets[i];
+        }
+        let mut fill = node_facet_offsets.clone();
+        let mut node_facets = vec![0usize; node_facet_offsets[node_count]];
+        for (fi, f) in facets.iter().enumerate() {
+            for &v in f {
+                node_facets[fill[v]] = fi;
+                fill[v] += 1;
+            }
+        }
+        let mut slaves = Vec::new();
+        let mut slave_body = Vec::new();
+        for n in 0..node_count {
+            let (a, b) = (node_facet_offsets[n], node_facet_offsets[n + 1]);
+            if a < b {
+                slaves.push(n);
+                slave_body.push(facet_body[node_facets[a]]);
+            }
+        }
+        ContactSurface {
+            facets,
+            facet_body,
+            slaves,
+            slave_body,
+            node_facet_offsets,
+            node_facets,
+        }
+    }
+
+    /// The master facets, global node ids.
+    pub fn facets(&self) -> &[[usize; D]] {
+        &self.facets
+    }
+
+    /// The body of each facet.
+    pub fn facet_body(&self) -> &[usize] {
+        &self.facet_body
+    }
+
+    /// The slave nodes (global ids, sorted).
+    pub fn slaves(&self) -> &[usize] {
+        &self.slaves
+    }
+
+    /// The body of each slave (same order as [`ContactSurface::slaves`]).
+    pub fn slave_body(&self) -> &[usize] {
+        &self.slave_body
+    }
+
+    /// The facets around a global node (empty for a node off the surface).
+    pub fn facets_of_node(&self, node: usize) -> &[usize] {
+        if node + 1 >= self.node_facet_offsets.len() {
+            return &[];
+        }
+        &self.node_facets[self.node_facet_offsets[node]..self.node_facet_offsets[node + 1]]
+    }
+
+    /// Whether self-contact excludes `facet` for the slave `node`: the facet shares the node,
+    /// or shares a node with a facet that does.
+    pub fn is_excluded(&self, node: usize, facet: usize) -> bool {
+        let f = &self.facets[facet];
+        if f.contains(&node) {
+            return true;
+        }
+        self.facets_of_node(node)
+            .iter()
+            .any(|&g| self.facets[g].iter().any(|v| f.contains(v)))
+    }
+
+    /// One past the largest node id used.
+    pub fn node_count(&self) -> usize {
+        self.node_facet_offsets.len().saturating_sub(1)
+    }
+}
+
+/// Detection parameters.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct DetectionOptions {
+    /// Detect a body's nodes against its own facets. Default false.
+    pub self_contact: bool,
+    /// Distance [m] added to the swept boxes of the broad phase, and the activation distance
+    /// of the narrow phase: a pair is reported while its gap is below it. Default 0.
+    pub margin: f64,
+    /// Detect each body's nodes against the other bodies' facets. Default true.
+    pub deformable_pairs: bool,
+    /// Hysteresis [m]: the master facet chosen at the previous call for a (slave, master) is
+    /// kept while it is no farther than the closest one plus this distance, so that the normal
+    /// does not flip between Newton iterations near edges and corners. Default 0 (exact ties
+    /// only keep the previous choice).
+    pub hysteresis: f64,
+}
+
+impl Default for DetectionOptions {
+    fn default() -> Self {
+        DetectionOptions {
+            self_contact: false,
+            margin: 0.0,
+            deformable_pairs: true,
+            hysteresis: 0.0,
+        }
+    }
+}
+
+/// The master side of a contact candidate or pair.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub enum Master {
+    /// A rigid obstacle (index in the obstacle slice).
+    Obstacle(usize),
+    /// A facet of a body (index in [`ContactSurface::facets`]).
+    Facet(usize),
+}
+
+/// One active contact: a slave node against a master, at the narrow-phase configuration.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ContactPair<const D: usize> {
+    /// The slave node (global id).
+    pub slave: usize,
+    /// The master: the obstacle, or the chosen facet of the master body.
+    pub master: Master,
+    /// Signed gap `(x_P - Q) . n` [m]; negative is penetration.
+    pub gap: f64,
+    /// Unit outward normal of the master at Q (the facet's normal for a facet).
+    pub normal: SVector<f64, D>,
+    /// The closest point Q on the master [m].
+    pub point: SVector<f64, D>,
+    /// Weights of the master facet's nodes at Q (`[1, 0, ..]` for an obstacle).
+    pub barycentric: [f64; D],
+    /// The feature of the master holding Q.
+    pub feature: Feature,
+}
+
+/// The key of one (slave, master) narrow-phase problem.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
+enum MasterKey {
+    Obstacle(usize),
+    Body(usize),
+}
+
+/// A facet obstacle's geometry in its frame at zero translation, with its hierarchy.
+struct ObstacleFacets<const D: usize>
+where
+    Dim<D>: SpatialDim<D>,
+{
+    sizes: (usize, usize),
+    vertices: Vec<SVector<f64, D>>,
+    facets: Vec<[usize; D]>,
+    boxes: Vec<Aabb<D>>,
+    tree: BoxTree<D>,
+    bounds: Aabb<D>,
+}
+
+impl<const D: usize> ObstacleFacets<D>
+where
+    Dim<D>: SpatialDim<D>,
+{
+    fn new(vertices: &[SVector<f64, D>], indices: &[Vec<usize>]) -> Self {
+        // Malformed facets (wrong arity, index out of range) are skipped, not fatal.
+        let facets: Vec<[usize; D]> = indices
+            .iter()
+            .filter(|f| f.len() == D && f.iter().all(|&i| i < vertices.len()))
+            .map(|f| std::array::from_fn(|k| f[k]))
+            .collect();
+        let boxes: Vec<Aabb<D>> = facets
+            .iter()
+            .map(|f| Aabb::from_points(f.iter().map(|&i| &vertices[i])))
+            .collect();
+        let bounds = boxes.iter().fold(Aabb::from_points([]), |a, b| a.merged(b));
+        ObstacleFacets {
+            sizes: (vertices.len(), indices.len()),
+            vertices: vertices.to_vec(),
+            facets,
+            tree: BoxTree::new(&boxes),
+            boxes,
+            bounds,
+        }
+    }
+
+    fn verts(&self, f: usize) -> [SVector<f64, D>; D] {
+        self.facets[f].map(|i| self.vertices[i])
+    }
+}
+
+/// The closest facet chosen for one point.
+#[derive(Debug, Clone, Copy)]
+struct Choice<const D: usize> {
+    facet: usize,
+    point: SVector<f64, D>,
+    barycentric: [f64; D],
+    feature: Feature,
+    normal: SVector<f64, D>,
+    gap: f64,
+}
+
+/// Chooses the master facet for point `p` among `candidates`: the closest one; among facets
+/// at the same distance (a shared edge or vertex), the one whose normal best follows `p - Q`
+/// (largest gap), then the lowest index; the previous choice is kept while it is within
+/// `hysteresis` [m] of the closest. Degenerate facets and those `accept` rejects are skipped.
+fn choose<const D: usize>(
+    p: &SVector<f64, D>,
+    candidates: impl Iterator<Item = usize>,
+    verts: impl Fn(usize) -> [SVector<f64, D>; D],
+    accept: impl Fn(&SVector<f64, D>) -> bool,
+    previous: Option<usize>,
+    hysteresis: f64,
+) -> Option<Choice<D>>
+where
+    Dim<D>: SpatialDim<D>,
+{
+    let mut best: Option<(f64, f64, Choice<D>)> = None;
+    let mut kept: Option<(f64, Choice<D>)> = None;
+    for f in candidates {
+        let v = verts(f);
+        let (measure, normal) = <Dim<D>>::facet_measure_normal(&v);
+        if !(measure > 0.0) || !accept(&normal) {
+            continue;
+        }
+        let Some(proj) = <Dim<D>>::project_on_facet(p, &v) else {
+            continue;
+        };
+        let d = (p - proj.point).norm();
+        let gap = (p - proj.point).dot(&normal);
+        let c = Choice {
+            facet: f,
+            point: proj.point,
+            barycentric: proj.barycentric,
+            feature: proj.feature,
+            normal,
+            gap,
+        };
+        // Ties are relative to the facet size: exact ties at shared features differ by
+        // rounding only.
+        let tol = 1e-9 * (v[1] - v[0]).norm().max(d);
+        if Some(f) == previous {
+            kept = Some((d, c));
+        }
+        best = match best {
+            None => Some((d, tol, c)),
+            Some((bd, btol, bc)) => {
+                let t = tol.max(btol);
+                if d < bd - t || (d <= bd + t && gap > bc.gap) {
+                    Some((d.min(bd), t, c))
+                } else {
+                    Some((bd.min(d), t, bc))
+                }
+            }
+        };
+    }
+    let (bd, tol, bc) = best?;
+    match kept {
+        Some((d, c)) if d <= bd + hysteresis + tol => Some(c),
+        _ => Some(bc),
+    }
+}
+
+/// Broad and narrow phase over a [`ContactSurface`]; see the module documentation.
+pub struct Detector<const D: usize>
+where
+    Dim<D>: SpatialDim<D>,
+{
+    surface: ContactSurface<D>,
+    options: DetectionOptions,
+    facet_boxes: Vec<Aabb<D>>,
+    tree: Option<BoxTree<D>>,
+    candidates: Vec<(usize, Master)>,
+    obstacle_facets: Vec<Option<ObstacleFacets<D>>>,
+    previous: HashMap<(usize, MasterKey), usize>,
+}
+
+/// Candidate pairs of the slaves `slaves[start..start + chunk.len()]`.
+type Chunk = Vec<(usize, Master)>;
+
+#[cfg(feature = "parallel")]
+fn map_chunks<T: Sync, R: Send>(
+    items: &[T],
+    f: impl Fn(usize, &[T]) -> Vec<R> + Sync + Send,
+) -> Vec<R> {
+    use rayon::prelude::*;
+    const CHUNK: usize = 512;
+    let parts: Vec<Vec<R>> = items
+        .par_chunks(CHUNK)
+        .enumerate()
+        .map(|(i, c)| f(i * CHUNK, c))
+        .collect();
+    parts.into_iter().flatten().collect()
+}
+
+#[cfg(not(feature = "parallel"))]
+fn map_chunks<T: Sync, R: Send>(
+    items: &[T],
+    f: impl Fn(usize, &[T]) -> Vec<R> + Sync + Send,
+) -> Vec<R> {
+    f(0, items)
+}
+
+impl<const D: usize> Detector<D>
+where
+    Dim<D>: SpatialDim<D>,
+{
+    /// A detector over `surface`; the hierarchy is built at the first
+    /// [`Detector::update_candidates`].
+    pub fn new(surface: ContactSurface<D>, options: DetectionOptions) -> Self {
+        Detector {
+            surface,
+            options,
+            facet_boxes: Vec::new(),
+            tree: None,
+            candidates: Vec::new(),
+            obstacle_facets: Vec::new(),
+            previous: HashMap::new(),
+        }
+    }
+
+    /// The surface.
+    pub fn surface(&self) -> &ContactSurface<D> {
+        &self.surface
+    }
+
+    /// The options.
+    pub fn options(&self) -> &DetectionOptions {
+        &self.options
+    }
+
+    /// Changes the options (takes effect at the next call).
+    pub fn set_options(&mut self, options: DetectionOptions) {
+        self.options = options;
+    }
+
+    /// The candidates of the last [`Detector::update_candidates`]: (slave node, master),
+    /// sorted by slave, then obstacles before facets, then index.
+    pub fn candidates(&self) -> &[(usize, Master)] {
+        &self.candidates
+    }
+
+    /// The swept box of every facet at the last update [m] (the broad phase's leaves).
+    pub fn facet_boxes(&self) -> &[Aabb<D>] {
+        &self.facet_boxes
+    }
+
+    /// (Re)builds the hierarchies of the facet obstacles whose sizes changed. Obstacle shapes
+    /// are rigid: only their translation may change between calls.
+    fn sync_obstacles(&mut self, obstacles: &[Obstacle<D>]) {
+        self.obstacle_facets.resize_with(obstacles.len(), || None);
+        for (k, o) in obstacles.iter().enumerate() {
+            match &o.shape {
+                ObstacleShape::Facets { vertices, indices } => {
+                    let sizes = (vertices.len(), indices.len());
+                    if self.obstacle_facets[k].as_ref().map(|c| c.sizes) != Some(sizes) {
+                        self.obstacle_facets[k] = Some(ObstacleFacets::new(vertices, indices));
+                    }
+                }
+                _ => self.obstacle_facets[k] = None,
+            }
+        }
+    }
+
+    /// Broad phase over a step: each slave's segment from `x0` to `x1` against each facet's
+    /// box swept from `x0` to `x1` (grown by the margin), and against each obstacle's region
+    /// swept from its `translation` (t0) to `obstacle_translation_t1` (t1), grown by the
+    /// margin. `x0`, `x1` are global node positions [m]. Deterministic order.
+    ///
+    /// # Panics
+    /// If `x0` or `x1` is shorter than [`ContactSurface::node_count`], or the translations do
+    /// not match the obstacles.
+    pub fn update_candidates(
+        &mut self,
+        x0: &[SVector<f64, D>],
+        x1: &[SVector<f64, D>],
+        obstacles: &[Obstacle<D>],
+        obstacle_translation_t1: &[SVector<f64, D>],
+    ) {
+        let n = self.surface.node_count();
+        assert!(
+            x0.len() >= n && x1.len() >= n,
+            "positions shorter than the surface's nodes"
+        );
+        assert_eq!(
+            obstacles.len(),
+            obstacle_translation_t1.len(),
+            "one t1 translation per obstacle"
+        );
+        let margin = self.options.margin.max(0.0);
+        self.facet_boxes = map_chunks(&self.surface.facets, |_, fs| {
+            fs.iter()
+                .map(|f| {
+                    Aabb::from_points(f.iter().map(|&i| &x0[i]).chain(f.iter().map(|&i| &x1[i])))
+                        .loosened(margin)
+                })
+                .collect()
+        });
+        match &mut self.tree {
+            Some(t) if t.len() == self.facet_boxes.len() => t.refit(&self.facet_boxes),
+            _ => self.tree = Some(BoxTree::new(&self.facet_boxes)),
+        }
+        self.sync_obstacles(obstacles);
+        let tree = self.tree.as_ref().expect("built above");
+        let (surface, options, cache) = (&self.surface, &self.options, &self.obstacle_facets);
+        self.candidates = map_chunks(&surface.slaves, |start, slaves| -> Chunk {
+            let mut out = Vec::new();
+            let mut hits = Vec::new();
+            for (i, &node) in slaves.iter().enumerate() {
+                let body = surface.slave_body[start + i];
+                let seg = Aabb::from_points([&x0[node], &x1[node]]);
+                for (k, o) in obstacles.iter().enumerate() {
+                    let swept = (o.translation, obstacle_translation_t1[k]);
+                    if obstacle_overlaps(o, swept, &seg, margin, cache[k].as_ref()) {
+                        out.push((node, Master::Obstacle(k)));
+                    }
+                }
+                hits.clear();
+                tree.query(&seg, &mut hits);
+                hits.sort_unstable();
+                for &f in &hits {
+                    let fb = surface.facet_body[f];
+                    let allowed = if fb == body {
+                        options.self_contact && !surface.is_excluded(node, f)
+                    } else {
+                        options.deformable_pairs
+                    };
+                    if allowed {
+                        out.push((node, Master::Facet(f)));
+                    }
+                }
+            }
+            out
+        });
+    }
+
+    /// Narrow phase at the configuration `x` (global node positions [m], usually the predicted
+    /// end of the step) with the obstacles at their `translation`: one pair per (slave,
+    /// obstacle) and per (slave, master body) among the candidates whose gap is below the
+    /// margin. Sorted by slave, then master.
+    ///
+    /// # Panics
+    /// If `x` is shorter than [`ContactSurface::node_count`].
+    pub fn pairs(
+        &mut self,
+        x: &[SVector<f64, D>],
+        obstacles: &[Obstacle<D>],
+    ) -> Vec<ContactPair<D>> {
+        assert!(
+            x.len() >= self.surface.node_count(),
+            "positions shorter than the surface's nodes"
+        );
+        self.sync_obstacles(obstacles);
+        // Groups of candidates with one slave.
+        let mut groups = Vec::new();
+        let mut a = 0;
+        while a < self.candidates.len() {
+            let mut b = a + 1;
+            while b < self.candidates.len() && self.candidates[b].0 == self.candidates[a].0 {
+                b += 1;
+            }
+            groups.push((a, b));
+            a = b;
+        }
+        let normals = if self.options.self_contact {
+            Some(self.node_normals(x))
+        } else {
+            None
+        };
+        let (surface, options, cache, previous, cands) = (
+            &self.surface,
+            &self.options,
+            &self.obstacle_facets,
+            &self.previous,
+            &self.candidates,
+        );
+        let activation = options.margin;
+        let results: Vec<(ContactPair<D>, MasterKey, usize, bool)> = map_chunks(
+            &groups,
+            |_, gs| {
+                let mut out = Vec::new();
+                for &(a, b) in gs {
+                    let node = cands[a].0;
+                    let p = x[node];
+                    let mut i = a;
+                    while i < b {
+                        match cands[i].1 {
+                            Master::Obstacle(k) => {
+                                i += 1;
+                                let Some(o) = obstacles.get(k) else { continue };
+                                let key = MasterKey::Obstacle(k);
+                                let prev = previous.get(&(node, key)).copied();
+                                if let Some((pair, choice)) = obstacle_pair(
+                                    o,
+                                    cache[k].as_ref(),
+                                    &p,
+                                    prev,
+                                    options.hysteresis,
+                                ) {
+                                    let pair = ContactPair {
+                                        slave: node,
+                                        master: Master::Obstacle(k),
+                                        ..pair
+                                    };
+                                    out.push((pair, key, choice, pair.gap < activation));
+                                }
+                            }
+                            Master::Facet(f0) => {
+                                let body = surface.facet_body[f0];
+                                let mut j = i;
+                                while j < b
+                                    && matches!(cands[j].1, Master::Facet(f) if surface.facet_body[f] == body)
+                                {
+                                    j += 1;
+                                }
+                                let key = MasterKey::Body(body);
+                                let prev = previous.get(&(node, key)).copied();
+                                let own = normals.as_ref().filter(|_| {
+                                    body == surface.facet_body[surface.facets_of_node(node)[0]]
+                                });
+                                let choice = choose(
+                                    &p,
+                                    cands[i..j].iter().map(|c| match c.1 {
+                                        Master::Facet(f) => f,
+                                        Master::Obstacle(_) => unreachable!("facets only"),
+                                    }),
+                                    |f| surface.facets[f].map(|v| x[v]),
+                                    // Self-contact: only facets facing the node.
+                                    |n| own.is_none_or(|nn| nn[node].dot(n) < 0.0),
+                                    prev,
+                                    options.hysteresis,
+                                );
+                                if let Some(c) = choice {
+                                    let pair = ContactPair {
+                                        slave: node,
+                                        master: Master::Facet(c.facet),
+                                        gap: c.gap,
+                                        normal: c.normal,
+                                        point: c.point,
+                                        barycentric: c.barycentric,
+                                        feature: c.feature,
+                                    };
+                                    out.push((pair, key, c.facet, c.gap < activation));
+                                }
+                                i = j;
+                            }
+                        }
+                    }
+                }
+                out
+            },
+        );
+        self.previous = results
+            .iter()
+            .map(|(p, key, choice, _)| ((p.slave, *key), *choice))
+            .collect();
+        results.into_iter().filter(|r| r.3).map(|r| r.0).collect()
+    }
+
+    /// Area-weighted outward normals of the surface nodes at `x` (zero off the surface).
+    fn node_normals(&self, x: &[SVector<f64, D>]) -> Vec<SVector<f64, D>> {
+        let mut normals = vec![SVector::<f64, D>::zeros(); self.surface.node_count()];
+        for f in &self.surface.facets {
+            let (m, n) = <Dim<D>>::facet_measure_normal(&f.map(|v| x[v]));
+            for &v in f {
+                normals[v] += n * m;
+            }
+        }
+        normals
+    }
+}
+
+/// Whether an obstacle's region swept between translations `t.0` and `t.1`, grown by `margin`,
+/// may touch the box `seg` (conservative).
+fn obstacle_overlaps<const D: usize>(
+    o: &Obstacle<D>,
+    t: (SVector<f64, D>, SVector<f64, D>),
+    seg: &Aabb<D>,
+    margin: f64,
+    facets: Option<&ObstacleFacets<D>>,
+) -> bool
+where
+    Dim<D>: SpatialDim<D>,
+{
+    let (tlo, thi) = (t.0.inf(&t.1), t.0.sup(&t.1));
+    match &o.shape {
+        ObstacleShape::Halfspace { point, normal } => {
+            let norm = normal.norm();
+            if !(norm > 0.0) {
+                return false;
+            }
+            let n = normal / norm;
+            // Smallest signed distance over the box, at either end translation: the relative
+            // motion is linear, so its extremes are at the ends.
+            let low: f64 = (0..D)
+                .map(|k| (seg.min[k] * n[k]).min(seg.max[k] * n[k]))
+                .sum();
+            let far = (point + t.0).dot(&n).max((point + t.1).dot(&n));
+            low - far < margin
+        }
+        ObstacleShape::Box {
+            center,
+            half_extents,
+        } => {
+            let b = Aabb {
+                min: center + tlo - half_extents,
+                max: center + thi + half_extents,
+            };
+            b.loosened(margin).intersects(seg)
+        }
+        ObstacleShape::Ball { center, radius } => {
+            let c = Aabb {
+                min: center + tlo,
+                max: center + thi,
+            };
+            c.distance(seg) <= radius + margin
+        }
+        ObstacleShape::Facets { .. } => {
+            let Some(of) = facets else { return false };
+            // In the obstacle's frame the box moves by -t: the query is its Minkowski sum.
+            let q = Aabb {
+                min: seg.min - thi,
+                max: seg.max - tlo,
+            }
+            .loosened(margin);
+            if !of.bounds.intersects(&q) {
+                return false;
+            }
+            let mut hits = Vec::new();
+            of.tree.query(&q, &mut hits);
+            !hits.is_empty()
+        }
+    }
+}
+
+/// The contact of point `p` with an obstacle at its current translation: the pair (slave and
+/// master left to fill) and the choice to remember (face or facet index).
+fn obstacle_pair<const D: usize>(
+    o: &Obstacle<D>,
+    facets: Option<&ObstacleFacets<D>>,
+    p: &SVector<f64, D>,
+    previous: Option<usize>,
+    hysteresis: f64,
+) -> Option<(ContactPair<D>, usize)>
+where
+    Dim<D>: SpatialDim<D>,
+{
+    let mut e0 = [0.0; D];
+    e0[0] = 1.0;
+    let pair =
+        |gap: f64, normal: SVector<f64, D>, point: SVector<f64, D>, feature: Feature| ContactPair {
+            slave: 0,
+            master: Master::Obstacle(0),
+            gap,
+            normal,
+            point,
+            barycentric: e0,
+            feature,
+        };
+    let t = o.translation;
+    match &o.shape {
+        ObstacleShape::Halfspace { point, normal } => {
+            let norm = normal.norm();
+            if !(norm > 0.0) {
+                return None;
+            }
+            let n = normal / norm;
+            let g = (p - point - t).dot(&n);
+            Some((pair(g, n, p - n * g, Feature::Face), 0))
+        }
+        ObstacleShape::Ball { center, radius } => {
+            let c = center + t;
+            let r = p - c;
+            let d = r.norm();
+            // At the centre every direction is a normal: take the last axis (up) for
+            // determinism.
+            let n = if d > 0.0 {
+                r / d
+            } else {
+                let mut up = SVector::<f64, D>::zeros();
+                up[D - 1] = 1.0;
+                up
+            };
+            Some((pair(d - radius, n, c + n * *radius, Feature::Face), 0))
+        }
+        ObstacleShape::Box {
+            center,
+            half_extents,
+        } => {
+            let c = center + t;
+            let y = p - c;
+            let h = half_extents.abs();
+            let q = SVector::<f64, D>::from_fn(|k, _| y[k].clamp(-h[k], h[k]));
+            let outside = y - q;
+            let d = outside.norm();
+            if d > 0.0 {
+                let clamped: Vec<usize> = (0..D).filter(|&k| y[k].abs() > h[k]).collect();
+                let bits = (0..D).filter(|&k| y[k] > 0.0).fold(0, |b, k| b | (1 << k));
+                let feature = match clamped.len() {
+                    1 => Feature::Face,
+                    l if l == D => Feature::Vertex(bits),
+                    _ => Feature::Edge((0..D).find(|k| !clamped.contains(k)).unwrap_or(0)),
+                };
+                return Some((pair(d, outside / d, c + q, feature), 0));
+            }
+            // Inside: the nearest face, face id 2 k + (side > 0); the previous face is kept
+            // within the hysteresis.
+            let depth = |face: usize| {
+                h[face / 2]
+                    - if face % 2 == 1 {
+                        y[face / 2]
+                    } else {
+                        -y[face / 2]
+                    }
+            };
+            let mut best = 0;
+            for face in 1..2 * D {
+                if depth(face) < depth(best) {
+                    best = face;
+                }
+            }
+            if let Some(pf) = previous.filter(|&f| f < 2 * D) {
+                if depth(pf) <= depth(best) + hysteresis {
+                    best = pf;
+                }
+            }
+            let k = best / 2;
+            let s = if best % 2 == 1 { 1.0 } else { -1.0 };
+            let mut n = SVector::<f64, D>::zeros();
+            n[k] = s;
+            let mut qp = *p;
+            qp[k] = c[k] + s * h[k];
+            Some((pair(-depth(best), n, qp, Feature::Face), best))
+        }
+        ObstacleShape::Facets { .. } => {
+            let of = facets?;
+            if of.facets.is_empty() {
+                return None;
+            }
+            let pl = p - t;
+            // Grow a search box until it holds a facet at most its half-width away: then it
+            // holds every facet as close as the closest one.
+            let diag = (of.bounds.max - of.bounds.min).norm();
+            let mut r = (1e-3 * diag).max(f64::MIN_POSITIVE);
+            let reach = 4.0 * (diag + of.bounds.distance(&Aabb { min: pl, max: pl }));
+            let mut hits = Vec::new();
+            loop {
+                hits.clear();
+                of.tree
+                    .query(&Aabb { min: pl, max: pl }.loosened(r), &mut hits);
+                hits.sort_unstable();
+                let near = hits
+                    .iter()
+                    .any(|&f| of.boxes[f].distance(&Aabb { min: pl, max: pl }) <= r);
+                if near {
+                    let c = choose(
+                        &pl,
+                        hits.iter().copied(),
+                        |f| of.verts(f),
+                        |_| true,
+                        previous,
+                        hysteresis,
+                    );
+                    if let Some(c) = c {
+                        if (pl - c.point).norm() <= r {
+                            return Some((pair(c.gap, c.normal, c.point + t, c.feature), c.facet));
+                        }
+                    }
+                }
+                if r > reach {
+                    // Only degenerate facets within reach.
+                    let c = choose(
+                        &pl,
+                        0..of.facets.len(),
+                        |f| of.verts(f),
+                        |_| true,
+                        previous,
+                        hysteresis,
+                    )?;
+                    return Some((pair(c.gap, c.normal, c.point + t, c.feature), c.facet));
+                }
+                r *= 4.0;
+            }
+        }
+    }
+}
