@@ -1185,6 +1185,17 @@ impl LoadedScene {
         if c.len() != N || c.iter().any(|&n| n < 1) {
             return Err(self.error(key, format!("{c:?}"), format!("{N} positive integers")));
         }
+        // The generators multiply these; a huge request must be an input error, not an
+        // arithmetic overflow (a panic) or an allocation failure.
+        const MAX_CELLS: i64 = 100_000_000;
+        let total = c.iter().try_fold(1i64, |acc, &n| acc.checked_mul(n));
+        if total.is_none_or(|t| t > MAX_CELLS) {
+            return Err(self.error(
+                key,
+                format!("{c:?}"),
+                format!("at most {MAX_CELLS} cells in all"),
+            ));
+        }
         let mut out = [0usize; N];
         for (o, &n) in out.iter_mut().zip(c) {
             *o = n as usize;
