@@ -1002,6 +1002,15 @@ impl LoadedScene {
                 body.constraints
                     .push(self.constraint::<D>(&ck, cs, &body.mesh, &groups, &spec.name)?);
             }
+            if kinematics == Kinematics::Axisymmetric {
+                if let Some(n) = body.mesh.nodes.iter().position(|x| x[0] < 0.0) {
+                    return Err(self.error(
+                        &format!("{key}.mesh"),
+                        format!("node {n} at r = x = {}", body.mesh.nodes[n][0]),
+                        "r = x >= 0 for every node in axisymmetric kinematics",
+                    ));
+                }
+            }
             if let Err(e) = body.mesh.check_quality(&spec.name) {
                 return Err(match e {
                     Error::InvertedElement { cell, kind, jacobian, .. } => self.error(
@@ -1275,7 +1284,14 @@ impl LoadedScene {
                     other => other,
                 })?;
                 let groups = mesh.node_sets.clone().into_iter().collect();
-                mesh.validate_topology(body)?;
+                mesh.validate_topology(body).map_err(|e| match e {
+                    Error::Mesh { message, .. } => self.error(
+                        &format!("{key}.file"),
+                        format!("{}: {message}", path.display()),
+                        "a mesh whose cells use every node, with finite coordinates",
+                    ),
+                    other => other,
+                })?;
                 Ok((mesh, groups))
             }
             (Some(g), None) => {
