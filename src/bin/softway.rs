@@ -217,9 +217,18 @@ where
     if let Some(bar) = bar {
         bar.finish_and_clear();
     }
+    let warnings = match &result {
+        Ok(summary) => &summary.warnings,
+        Err(failure) => &failure.summary.warnings,
+    };
+    if show {
+        for w in warnings {
+            eprintln!("warning: {w} (also in summary.json)");
+        }
+    }
     match result {
         Ok(summary) => {
-            if !quiet {
+            if show {
                 eprintln!(
                     "done: {} steps to t = {} s, {} iterations, energy drift {:.3e}, {:.2} s; outputs in {}",
                     summary.steps,
