@@ -859,6 +859,21 @@ impl LoadedScene {
         Ok(SVector::from_column_slice(v))
     }
 
+    /// Names become history.csv columns (`probe.<name>.ux`), VTK file names
+    /// (`vtk/<body>_<step>.vtu`) and `--set obstacles.NAME.` paths: no commas, quotes, dots,
+    /// slashes or spaces.
+    fn name(&self, key: &str, name: &str) -> Result<()> {
+        let ok = |c: char| c.is_alphanumeric() || c == '_' || c == '-';
+        if name.is_empty() || !name.chars().all(ok) {
+            return Err(self.error(
+                key,
+                format!("{name:?}"),
+                "a non-empty name of letters, digits, '_' and '-'",
+            ));
+        }
+        Ok(())
+    }
+
     fn positive(&self, key: &str, v: f64, unit: &str) -> Result<f64> {
         if v > 0.0 && v.is_finite() {
             Ok(v)
@@ -970,6 +985,7 @@ impl LoadedScene {
                     "a unique body name",
                 ));
             }
+            self.name(&format!("{key}.name"), &spec.name)?;
             let (mesh, groups) = self.mesh::<D>(&format!("{key}.mesh"), &spec.mesh, &spec.name)?;
             let material = self.material(&format!("{key}.material"), &spec.material)?;
             let mut body = Body::new(spec.name.clone(), mesh, material);
@@ -1034,6 +1050,7 @@ impl LoadedScene {
                     "a unique obstacle name",
                 ));
             }
+            self.name(&format!("{key}.name"), &spec.name)?;
             let shape = self.shape::<D>(&format!("{key}.shape"), &spec.shape)?;
             let mut obstacle = Obstacle::new(spec.name.clone(), shape);
             if let Some(v) = &spec.velocity {
@@ -1055,6 +1072,7 @@ impl LoadedScene {
                     "a unique probe name",
                 ));
             }
+            self.name(&format!("{key}.name"), &spec.name)?;
             let body = bodies
                 .iter()
                 .position(|b| b.name == spec.body)
