@@ -1296,7 +1296,7 @@ impl LoadedScene {
                 let mesh = crate::mesh::from_gmsh_file::<D>(&path).map_err(|e| match e {
                     Error::MeshFile { file, message } => self.error(
                         &format!("{key}.file"),
-                        format!("{}: {message}", file.display()),
+                        format!("{} ({message})", file.display()),
                         "a readable Gmsh MSH 2.2 or 4.1 file",
                     ),
                     other => other,
@@ -1305,7 +1305,7 @@ impl LoadedScene {
                 mesh.validate_topology(body).map_err(|e| match e {
                     Error::Mesh { message, .. } => self.error(
                         &format!("{key}.file"),
-                        format!("{}: {message}", path.display()),
+                        format!("{} ({message})", path.display()),
                         "a mesh whose cells use every node, with finite coordinates",
                     ),
                     other => other,
