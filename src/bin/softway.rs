@@ -161,7 +161,9 @@ where
         scene.end_time,
         // As `run` counts them: the last step may be shortened, and a quotient that is an
         // integer up to round-off (0.07 / 0.01 = 7.000000000000001) is not one more step.
-        (scene.end_time / s.time_step * (1.0 - 1e-9)).ceil().max(0.0),
+        (scene.end_time / s.time_step * (1.0 - 1e-9))
+            .ceil()
+            .max(0.0),
         s.scheme.alpha,
         s.scheme.beta
     );

@@ -624,9 +624,9 @@ fn untagged_expectation(key: &str) -> Option<&'static str> {
     let last = key.rsplit('.').next().unwrap_or("");
     match last {
         "beta" => Some("\"energy\", \"trapezoid\" or a number in [0, 1]"),
-        "velocity" if key.contains(".constraints.") => Some(
-            "an array of numbers [m/s] or a table of some components, e.g. { y = 0.0 }",
-        ),
+        "velocity" if key.contains(".constraints.") => {
+            Some("an array of numbers [m/s] or a table of some components, e.g. { y = 0.0 }")
+        }
         "initial_angular_velocity" => Some("a number [rad/s] in 2D, [wx, wy, wz] [rad/s] in 3D"),
         _ => None,
     }
