@@ -1282,6 +1282,17 @@ impl LoadedScene {
             } => self.error(&format!("{key}.{name}"), found, expected),
             other => other,
         };
+        let present = [
+            ("min", spec.min.is_some()),
+            ("max", spec.max.is_some()),
+            ("cells", spec.cells.is_some()),
+            ("element", spec.element.is_some()),
+            ("center", spec.center.is_some()),
+            ("inner_radius", spec.inner_radius.is_some()),
+            ("outer_radius", spec.outer_radius.is_some()),
+            ("vertices", spec.vertices.is_some()),
+            ("length", spec.length.is_some()),
+        ];
         match (&spec.generator, &spec.file) {
             (Some(_), Some(_)) => {
                 Err(self.error(key, "both `generator` and `file`", "one of them"))
@@ -1292,6 +1303,14 @@ impl LoadedScene {
                 "a generator (rectangle, box, annulus, polygon) or a Gmsh file",
             )),
             (None, Some(file)) => {
+                // A mesh file brings its own cells: generator keys would be silently ignored.
+                if let Some((name, _)) = present.iter().find(|(_, is)| *is) {
+                    return Err(self.error(
+                        &format!("{key}.{name}"),
+                        format!("`{name}` with a mesh file"),
+                        "only `file` (the generator keys do not apply to a Gmsh file)",
+                    ));
+                }
                 let path = self.base_dir().join(file);
                 let mesh = crate::mesh::from_gmsh_file::<D>(&path).map_err(|e| match e {
                     Error::MeshFile { file, message } => self.error(
@@ -1332,17 +1351,6 @@ impl LoadedScene {
                         ))
                     }
                 };
-                let present = [
-                    ("min", spec.min.is_some()),
-                    ("max", spec.max.is_some()),
-                    ("cells", spec.cells.is_some()),
-                    ("element", spec.element.is_some()),
-                    ("center", spec.center.is_some()),
-                    ("inner_radius", spec.inner_radius.is_some()),
-                    ("outer_radius", spec.outer_radius.is_some()),
-                    ("vertices", spec.vertices.is_some()),
-                    ("length", spec.length.is_some()),
-                ];
                 for (name, is) in present {
                     if is && !allowed.contains(&name) {
                         return Err(self.error(
