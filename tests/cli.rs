@@ -442,6 +442,15 @@ fn bad_meshes() {
             expected: "a readable Gmsh MSH 2.2 or 4.1 file",
         },
     );
+    assert_bad_scene(
+        "mesh_file_with_cells",
+        Expect {
+            key: "bodies.0.mesh.cells",
+            marker: mesh_line,
+            found: "`cells` with a mesh file",
+            expected: "only `file`",
+        },
+    );
     // inverted.msh: two triangles of a square, the second one numbered clockwise.
     assert_bad_scene(
         "mesh_inverted",
