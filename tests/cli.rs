@@ -1111,7 +1111,7 @@ fn instability_exits_3_with_the_history_written() {
     let s = summary(&out);
     assert_eq!(s["status"], "failed");
     let good = s["steps"].as_u64().unwrap();
-    assert!(good >= 1 && good < 300, "stopped after {good} good steps");
+    assert!((1..300).contains(&good), "stopped after {good} good steps");
     let failed = good + 1;
     assert!(
         err.contains(&format!("instability at step {failed} ")),
