@@ -127,17 +127,30 @@ fn invalid(e: &Error) -> ExitCode {
     ExitCode::from(INVALID)
 }
 
+/// Like [`invalid`], for an error found while building or starting a scene: the message names
+/// the scene file even when the error comes from the library (a mesh, the simulation setup).
+fn invalid_in(scene: &Path, e: &Error) -> ExitCode {
+    let message = e.to_string();
+    let file = scene.display().to_string();
+    if matches!(e, Error::Scene { .. } | Error::SceneSyntax { .. }) || message.contains(&file) {
+        eprintln!("error: {message}");
+    } else {
+        eprintln!("error: {file}: {message}");
+    }
+    ExitCode::from(INVALID)
+}
+
 fn check<const D: usize>(loaded: &LoadedScene) -> ExitCode
 where
     Dim<D>: SpatialDim<D>,
 {
     let scene = match loaded.build::<D>() {
         Ok(s) => s,
-        Err(e) => return invalid(&e),
+        Err(e) => return invalid_in(&loaded.path, &e),
     };
     let sim = match softway::Simulation::new(scene.settings.clone(), scene.bodies.clone()) {
         Ok(s) => s,
-        Err(e) => return invalid(&e),
+        Err(e) => return invalid_in(&loaded.path, &e),
     };
     let s = &scene.settings;
     println!("{}: valid", loaded.path.display());
@@ -146,7 +159,11 @@ where
         s.kinematics,
         s.time_step,
         scene.end_time,
-        (scene.end_time / s.time_step).ceil(),
+        // As `run` counts them: the last step may be shortened, and a quotient that is an
+        // integer up to round-off (0.07 / 0.01 = 7.000000000000001) is not one more step.
+        (scene.end_time / s.time_step * (1.0 - 1e-9))
+            .ceil()
+            .max(0.0),
         s.scheme.alpha,
         s.scheme.beta
     );
@@ -184,8 +201,9 @@ where
 {
     let scene = match loaded.build::<D>() {
         Ok(s) => s,
-        Err(e) => return invalid(&e),
+        Err(e) => return invalid_in(&loaded.path, &e),
     };
+    // scene-format.md: nothing but errors with --quiet or when stderr is not a terminal.
     let show = !quiet && std::io::stderr().is_terminal();
     let bar = if show {
         let bar = ProgressBar::new(1000);
@@ -217,9 +235,18 @@ where
     if let Some(bar) = bar {
         bar.finish_and_clear();
     }
+    let warnings = match &result {
+        Ok(summary) => &summary.warnings,
+        Err(failure) => &failure.summary.warnings,
+    };
+    if show {
+        for w in warnings {
+            eprintln!("warning: {w} (also in summary.json)");
+        }
+    }
     match result {
         Ok(summary) => {
-            if !quiet {
+            if show {
                 eprintln!(
                     "done: {} steps to t = {} s, {} iterations, energy drift {:.3e}, {:.2} s; outputs in {}",
                     summary.steps,
@@ -233,14 +260,14 @@ where
             ExitCode::SUCCESS
         }
         Err(failure) => {
-            eprintln!("error: {}", failure.error);
             let code = match failure.error {
                 Error::NotConverged { .. }
                 | Error::Unstable { .. }
                 | Error::Factorization { .. }
                 | Error::Output { .. } => FAILED,
-                _ => INVALID,
+                _ => return invalid_in(&loaded.path, &failure.error),
             };
+            eprintln!("error: {}", failure.error);
             if code == FAILED {
                 eprintln!(
                     "history up to step {} written to {}",

@@ -329,9 +329,6 @@ where
             "contact between bodies and self-contact are not detected in this version".into(),
         );
     }
-    for w in &warnings {
-        eprintln!("warning: {w}");
-    }
     let create = |p: &Path| {
         std::fs::create_dir_all(p).map_err(|source| Error::Output {
             file: p.to_path_buf(),

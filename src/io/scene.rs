@@ -454,15 +454,25 @@ pub fn parse(path: &Path, text: &str, overrides: &[String]) -> Result<LoadedScen
         overridden.push(key);
     }
     let value = toml::Value::Table(table);
-    let file: SceneFile = serde_path_to_error::deserialize(value).map_err(|e| {
-        let key = scene_path(&e.path().to_string());
+    let file: SceneFile = serde_path_to_error::deserialize(value.clone()).map_err(|e| {
+        // `message()`, not `to_string()`: the latter appends "in `path`" on extra lines.
+        let message = e.inner().message().trim_end().to_string();
+        let key = refine_key(&value, &scene_path(&e.path().to_string()), &message);
         let located = LoadedScene {
             path: path.to_path_buf(),
             file: empty_scene(),
             text: text.to_string(),
             overridden: overridden.clone(),
         };
-        let (found, expected) = split_serde_message(&e.inner().to_string());
+        let (found, expected) = match untagged_expectation(&key) {
+            Some(expected) if message.starts_with("data did not match any variant") => {
+                let found = value_at(&value, &key)
+                    .map(|v| v.to_string())
+                    .unwrap_or_else(|| "nothing".into());
+                (found, expected.to_string())
+            }
+            _ => split_serde_message(&message),
+        };
         Error::Scene {
             file: path.to_path_buf(),
             location: located.location(&key),
@@ -511,16 +521,125 @@ fn scene_path(p: &str) -> String {
     }
 }
 
+/// The value at a dotted key path (`bodies.0.material`), if present.
+fn value_at<'a>(root: &'a toml::Value, key: &str) -> Option<&'a toml::Value> {
+    let mut v = root;
+    for part in key.split('.').filter(|p| !p.is_empty()) {
+        v = match v {
+            toml::Value::Table(t) => t.get(part)?,
+            toml::Value::Array(a) => a.get(part.parse::<usize>().ok()?)?,
+            _ => return None,
+        };
+    }
+    Some(v)
+}
+
+/// serde's description of a value (`serde::de::Unexpected`), as it appears in its messages.
+fn unexpected(v: &toml::Value) -> String {
+    match v {
+        toml::Value::String(s) => format!("string {s:?}"),
+        toml::Value::Integer(i) => format!("integer `{i}`"),
+        toml::Value::Float(f) => format!("floating point `{}`", serde_float(*f)),
+        toml::Value::Boolean(b) => format!("boolean `{b}`"),
+        toml::Value::Array(_) => "sequence".into(),
+        toml::Value::Table(_) => "map".into(),
+        toml::Value::Datetime(d) => format!("{d}"),
+    }
+}
+
+fn serde_float(f: f64) -> String {
+    // serde prints floats with a trailing ".0" when integral (its `WithDecimalPoint`).
+    let s = f.to_string();
+    if f.is_finite() && !s.contains(['.', 'e', 'E']) {
+        format!("{s}.0")
+    } else {
+        s
+    }
+}
+
+/// serde_path_to_error stops at the table of an internally tagged enum (`material`, `shape`,
+/// `friction`) and at the table holding a missing field; this finds the key inside it that
+/// the message is about, so the error names e.g. `bodies.0.material.youngs_modulus`.
+fn refine_key(root: &toml::Value, key: &str, message: &str) -> String {
+    let join = |field: &str| {
+        if key.is_empty() {
+            field.to_string()
+        } else {
+            format!("{key}.{field}")
+        }
+    };
+    let quoted = |prefix: &str| {
+        message
+            .strip_prefix(prefix)
+            .and_then(|rest| rest.split('`').next())
+            .map(str::to_string)
+    };
+    let Some(toml::Value::Table(table)) = value_at(root, key) else {
+        return key.to_string();
+    };
+    let names_field = |field: &str| key == field || key.ends_with(&format!(".{field}"));
+    if let Some(field) = quoted("missing field `") {
+        if !table.contains_key(&field) {
+            return join(&field);
+        }
+    }
+    if let Some(field) = quoted("unknown field `") {
+        if table.contains_key(&field) && !names_field(&field) {
+            return join(&field);
+        }
+    }
+    if let Some(variant) = quoted("unknown variant `") {
+        let hits: Vec<&String> = table
+            .iter()
+            .filter(|(_, v)| v.as_str() == Some(variant.as_str()))
+            .map(|(k, _)| k)
+            .collect();
+        if let [one] = hits[..] {
+            return join(one);
+        }
+    }
+    for prefix in ["invalid type: ", "invalid value: "] {
+        if let Some(rest) = message.strip_prefix(prefix) {
+            let found = rest.split(", expected ").next().unwrap_or("");
+            let hits: Vec<&String> = table
+                .iter()
+                .filter(|(_, v)| unexpected(v) == found)
+                .map(|(k, _)| k)
+                .collect();
+            if let [one] = hits[..] {
+                return join(one);
+            }
+        }
+    }
+    key.to_string()
+}
+
+/// What an untagged value (one of several shapes) accepts, by key.
+fn untagged_expectation(key: &str) -> Option<&'static str> {
+    let last = key.rsplit('.').next().unwrap_or("");
+    match last {
+        "beta" => Some("\"energy\", \"trapezoid\" or a number in [0, 1]"),
+        "velocity" if key.contains(".constraints.") => {
+            Some("an array of numbers [m/s] or a table of some components, e.g. { y = 0.0 }")
+        }
+        "initial_angular_velocity" => Some("a number [rad/s] in 2D, [wx, wy, wz] [rad/s] in 3D"),
+        _ => None,
+    }
+}
+
 /// Turns serde's "invalid type: string \"a\", expected f64" into (found, expected).
 fn split_serde_message(msg: &str) -> (String, String) {
     if let Some(i) = msg.find(", expected ") {
         let found = msg[..i]
             .trim_start_matches("invalid type: ")
             .trim_start_matches("invalid value: ");
-        return (
-            found.to_string(),
-            msg[i + ", expected ".len()..].to_string(),
-        );
+        let expected = match &msg[i + ", expected ".len()..] {
+            "f64" => "a number",
+            "i64" => "an integer",
+            "a boolean" | "bool" => "true or false",
+            other => other,
+        };
+        return (found.to_string(), expected.to_string());
     }
     if let Some(rest) = msg.strip_prefix("missing field ") {
         return ("nothing".into(), format!("the required key {rest}"));
@@ -639,11 +758,17 @@ fn line_of(text: &str, key: &str) -> Option<usize> {
     let mut table: Option<&DeTable> = Some(doc.get_ref());
     let mut array: Option<&[toml::Spanned<DeValue>]> = None;
     for part in key.split('.') {
+        // A part that is not in the file (a missing key): stop at its deepest existing parent.
         let value = if let Some(items) = array.take() {
-            items.get(part.parse::<usize>().ok()?)?
+            match part.parse::<usize>().ok().and_then(|i| items.get(i)) {
+                Some(v) => v,
+                None => break,
+            }
         } else {
-            let t = table.take()?;
-            let (k, v) = t.iter().find(|(k, _)| k.get_ref().as_ref() == part)?;
+            let Some(t) = table.take() else { break };
+            let Some((k, v)) = t.iter().find(|(k, _)| k.get_ref().as_ref() == part) else {
+                break;
+            };
             span = Some(k.span());
             v
         };
@@ -727,6 +852,21 @@ impl LoadedScene {
             return Err(self.error(key, format!("{v:?}"), "finite numbers"));
         }
         Ok(SVector::from_column_slice(v))
+    }
+
+    /// Names become history.csv columns (`probe.<name>.ux`), VTK file names
+    /// (`vtk/<body>_<step>.vtu`) and `--set obstacles.NAME.` paths: no commas, quotes, dots,
+    /// slashes or spaces.
+    fn name(&self, key: &str, name: &str) -> Result<()> {
+        let ok = |c: char| c.is_alphanumeric() || c == '_' || c == '-';
+        if name.is_empty() || !name.chars().all(ok) {
+            return Err(self.error(
+                key,
+                format!("{name:?}"),
+                "a non-empty name of letters, digits, '_' and '-'",
+            ));
+        }
+        Ok(())
     }
 
     fn positive(&self, key: &str, v: f64, unit: &str) -> Result<f64> {
@@ -840,6 +980,7 @@ impl LoadedScene {
                     "a unique body name",
                 ));
             }
+            self.name(&format!("{key}.name"), &spec.name)?;
             let (mesh, groups) = self.mesh::<D>(&format!("{key}.mesh"), &spec.mesh, &spec.name)?;
             let material = self.material(&format!("{key}.material"), &spec.material)?;
             let mut body = Body::new(spec.name.clone(), mesh, material);
@@ -872,6 +1013,15 @@ impl LoadedScene {
                 body.constraints
                     .push(self.constraint::<D>(&ck, cs, &body.mesh, &groups, &spec.name)?);
             }
+            if kinematics == Kinematics::Axisymmetric {
+                if let Some(n) = body.mesh.nodes.iter().position(|x| x[0] < 0.0) {
+                    return Err(self.error(
+                        &format!("{key}.mesh"),
+                        format!("node {n} at r = x = {}", body.mesh.nodes[n][0]),
+                        "r = x >= 0 for every node in axisymmetric kinematics",
+                    ));
+                }
+            }
             if let Err(e) = body.mesh.check_quality(&spec.name) {
                 return Err(match e {
                     Error::InvertedElement { cell, kind, jacobian, .. } => self.error(
@@ -895,6 +1045,7 @@ impl LoadedScene {
                     "a unique obstacle name",
                 ));
             }
+            self.name(&format!("{key}.name"), &spec.name)?;
             let shape = self.shape::<D>(&format!("{key}.shape"), &spec.shape)?;
             let mut obstacle = Obstacle::new(spec.name.clone(), shape);
             if let Some(v) = &spec.velocity {
@@ -916,6 +1067,7 @@ impl LoadedScene {
                     "a unique probe name",
                 ));
             }
+            self.name(&format!("{key}.name"), &spec.name)?;
             let body = bodies
                 .iter()
                 .position(|b| b.name == spec.body)
@@ -1055,6 +1207,17 @@ impl LoadedScene {
         if c.len() != N || c.iter().any(|&n| n < 1) {
             return Err(self.error(key, format!("{c:?}"), format!("{N} positive integers")));
         }
+        // The generators multiply these; a huge request must be an input error, not an
+        // arithmetic overflow (a panic) or an allocation failure.
+        const MAX_CELLS: i64 = 100_000_000;
+        let total = c.iter().try_fold(1i64, |acc, &n| acc.checked_mul(n));
+        if total.is_none_or(|t| t > MAX_CELLS) {
+            return Err(self.error(
+                key,
+                format!("{c:?}"),
+                format!("at most {MAX_CELLS} cells in all"),
+            ));
+        }
         let mut out = [0usize; N];
         for (o, &n) in out.iter_mut().zip(c) {
             *o = n as usize;
@@ -1114,6 +1277,17 @@ impl LoadedScene {
             } => self.error(&format!("{key}.{name}"), found, expected),
             other => other,
         };
+        let present = [
+            ("min", spec.min.is_some()),
+            ("max", spec.max.is_some()),
+            ("cells", spec.cells.is_some()),
+            ("element", spec.element.is_some()),
+            ("center", spec.center.is_some()),
+            ("inner_radius", spec.inner_radius.is_some()),
+            ("outer_radius", spec.outer_radius.is_some()),
+            ("vertices", spec.vertices.is_some()),
+            ("length", spec.length.is_some()),
+        ];
         match (&spec.generator, &spec.file) {
             (Some(_), Some(_)) => {
                 Err(self.error(key, "both `generator` and `file`", "one of them"))
@@ -1124,17 +1298,32 @@ impl LoadedScene {
                 "a generator (rectangle, box, annulus, polygon) or a Gmsh file",
             )),
             (None, Some(file)) => {
+                // A mesh file brings its own cells: generator keys would be silently ignored.
+                if let Some((name, _)) = present.iter().find(|(_, is)| *is) {
+                    return Err(self.error(
+                        &format!("{key}.{name}"),
+                        format!("`{name}` with a mesh file"),
+                        "only `file` (the generator keys do not apply to a Gmsh file)",
+                    ));
+                }
                 let path = self.base_dir().join(file);
                 let mesh = crate::mesh::from_gmsh_file::<D>(&path).map_err(|e| match e {
                     Error::MeshFile { file, message } => self.error(
                         &format!("{key}.file"),
-                        format!("{}: {message}", file.display()),
+                        format!("{} ({message})", file.display()),
                         "a readable Gmsh MSH 2.2 or 4.1 file",
                     ),
                     other => other,
                 })?;
                 let groups = mesh.node_sets.clone().into_iter().collect();
-                mesh.validate_topology(body)?;
+                mesh.validate_topology(body).map_err(|e| match e {
+                    Error::Mesh { message, .. } => self.error(
+                        &format!("{key}.file"),
+                        format!("{} ({message})", path.display()),
+                        "a mesh whose cells use every node, with finite coordinates",
+                    ),
+                    other => other,
+                })?;
                 Ok((mesh, groups))
             }
             (Some(g), None) => {
@@ -1157,17 +1346,6 @@ impl LoadedScene {
                         ))
                     }
                 };
-                let present = [
-                    ("min", spec.min.is_some()),
-                    ("max", spec.max.is_some()),
-                    ("cells", spec.cells.is_some()),
-                    ("element", spec.element.is_some()),
-                    ("center", spec.center.is_some()),
-                    ("inner_radius", spec.inner_radius.is_some()),
-                    ("outer_radius", spec.outer_radius.is_some()),
-                    ("vertices", spec.vertices.is_some()),
-                    ("length", spec.length.is_some()),
-                ];
                 for (name, is) in present {
                     if is && !allowed.contains(&name) {
                         return Err(self.error(
