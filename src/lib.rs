@@ -33,6 +33,8 @@
 #![warn(missing_docs)]
 // Numerical kernels index several arrays by the same node or dof index.
 #![allow(clippy::needless_range_loop)]
+// `!(x > 0.0)` is deliberate: it rejects NaN along with non-positive values.
+#![allow(clippy::neg_cmp_op_on_partial_ord)]
 
 pub mod assembly;
 pub mod contact;
