@@ -860,10 +860,15 @@ where
                 &IterationInfo {
                     step,
                     iteration: iterations,
+                    time: t0,
+                    time_step: h,
                     residual_norm: norm,
                     relative_residual: rel,
                     increment_norm: inc2.sqrt(),
                     end_velocity: &v1,
+                    end_positions: &end_positions(&self.reference, &u0, &v0, &v1, h),
+                    candidates: 0,
+                    contacts: &[],
                 },
             );
         }
@@ -950,6 +955,24 @@ where
         recorder.step_end(self, &report);
         Ok(report)
     }
+}
+
+/// Predicted end-of-step positions with the exact integral of the velocity (eq 22).
+fn end_positions<const D: usize>(
+    x: &[SVector<f64, D>],
+    u0: &[f64],
+    v0: &[f64],
+    v1: &[f64],
+    h: f64,
+) -> Vec<SVector<f64, D>> {
+    (0..x.len())
+        .map(|n| {
+            x[n] + SVector::<f64, D>::from_fn(|k, _| {
+                let i = n * D + k;
+                u0[i] + 0.5 * h * (v0[i] + v1[i])
+            })
+        })
+        .collect()
 }
 
 fn validate_settings<const D: usize>(s: &Settings<D>) -> Result<()>
