@@ -148,7 +148,7 @@ where
         Ok(s) => s,
         Err(e) => return invalid_in(&loaded.path, &e),
     };
-    let sim = match softway::Simulation::new(scene.settings.clone(), scene.bodies.clone()) {
+    let sim = match scene.simulation() {
         Ok(s) => s,
         Err(e) => return invalid_in(&loaded.path, &e),
     };
@@ -178,9 +178,14 @@ where
         );
     }
     for o in &scene.obstacles {
+        println!("  obstacle `{}`", o.name);
+    }
+    if sim.detector().is_some() {
         println!(
-            "  obstacle `{}` (contact is not available in this version: `run` refuses it)",
-            o.name
+            "  contact: {}, penalty {} Pa/m, friction {:?}",
+            scene.contact.method.name(),
+            scene.contact.penalty,
+            scene.contact.friction
         );
     }
     for p in &scene.probes {

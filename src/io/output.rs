@@ -168,8 +168,8 @@ where
         number(report.map_or(0.0, |r| r.max_penetration)),
         report.map_or(0, |r| r.active_contacts).to_string(),
     ];
-    for _ in &scene.obstacles {
-        row.extend((0..D).map(|_| number(0.0)));
+    for k in 0..scene.obstacles.len() {
+        row.extend((0..D).map(|i| number(report.map_or(0.0, |r| r.contact_forces[k][i]))));
     }
     for (b, body) in scene.bodies.iter().enumerate() {
         if body.constraints.is_empty() {
@@ -202,7 +202,11 @@ fn vtk_kind(kind: ElementKind) -> VtkCellKind {
 }
 
 /// Writes one `.vtu` per body for the current state; returns the files relative to `out`.
-fn write_vtk<const D: usize>(sim: &Simulation<D>, out: &Path) -> Result<Vec<String>>
+fn write_vtk<const D: usize>(
+    sim: &Simulation<D>,
+    out: &Path,
+    contacts: &[(usize, f64, f64)],
+) -> Result<Vec<String>>
 where
     Dim<D>: SpatialDim<D>,
 {
@@ -222,7 +226,15 @@ where
             displacement.extend_from_slice(&<Dim<D>>::to_3d(&u));
             velocity.extend_from_slice(&<Dim<D>>::to_3d(&v));
         }
-        let zeros = vec![0.0; points.len()];
+        // Contact gap [m] and normal force [N] of the slave points in contact.
+        let mut gap = vec![0.0; points.len()];
+        let mut force = vec![0.0; points.len()];
+        for &(node, g, f) in contacts {
+            if range.contains(&node) {
+                gap[node - range.start] = g;
+                force[node - range.start] = f;
+            }
+        }
         let cells: Vec<(VtkCellKind, &[usize])> = body
             .mesh
             .blocks
@@ -255,12 +267,12 @@ where
                 VtkField {
                     name: "contact_gap",
                     components: 1,
-                    values: &zeros,
+                    values: &gap,
                 },
                 VtkField {
                     name: "contact_force",
                     components: 1,
-                    values: &zeros,
+                    values: &force,
                 },
             ],
             cell_data: &[
@@ -314,21 +326,8 @@ where
             error,
         })
     };
-    if !scene.obstacles.is_empty() {
-        return Err(fail(Error::NotAvailable {
-            feature: "contact with obstacles".into(),
-            detail: "the [[obstacles]] section is parsed and validated, but contact detection \
-                     and resolution land in a later version; remove the obstacles to run"
-                .into(),
-        }));
-    }
-    let mut sim = Simulation::new(scene.settings.clone(), scene.bodies.clone()).map_err(fail)?;
-    let mut warnings: Vec<String> = sim.warnings().to_vec();
-    if scene.bodies.len() > 1 || scene.contact.self_contact {
-        warnings.push(
-            "contact between bodies and self-contact are not detected in this version".into(),
-        );
-    }
+    let mut sim = scene.simulation().map_err(fail)?;
+    let warnings: Vec<String> = sim.warnings().to_vec();
     let create = |p: &Path| {
         std::fs::create_dir_all(p).map_err(|source| Error::Output {
             file: p.to_path_buf(),
@@ -348,8 +347,11 @@ where
 
     let pvd_path = out.join(format!("{stem}.pvd"));
     let mut pvd: Vec<(f64, usize, String)> = Vec::new();
-    let write_frame = |sim: &Simulation<D>, pvd: &mut Vec<(f64, usize, String)>| -> Result<()> {
-        for (part, f) in write_vtk(sim, out)?.into_iter().enumerate() {
+    let write_frame = |sim: &Simulation<D>,
+                       pvd: &mut Vec<(f64, usize, String)>,
+                       contacts: &[(usize, f64, f64)]|
+     -> Result<()> {
+        for (part, f) in write_vtk(sim, out, contacts)?.into_iter().enumerate() {
             pvd.push((sim.state().time, part, f));
         }
         vtk::write_pvd_parts(&pvd_path, pvd).map_err(|source| Error::Output {
@@ -358,7 +360,7 @@ where
         })
     };
     if vtk_on {
-        write_frame(&sim, &mut pvd).map_err(fail)?;
+        write_frame(&sim, &mut pvd, &[]).map_err(fail)?;
     }
 
     let mut summary = empty_summary();
@@ -400,7 +402,7 @@ where
                     while next_vtk <= now * (1.0 + 1e-9) {
                         next_vtk += scene.output.vtk_interval;
                     }
-                    if let Err(e) = write_frame(&sim, &mut pvd) {
+                    if let Err(e) = write_frame(&sim, &mut pvd, &report.contacts) {
                         error = Some(e);
                         break;
                     }

@@ -7,7 +7,8 @@ use std::path::{Path, PathBuf};
 use nalgebra::SVector;
 use serde::Deserialize;
 
-use crate::contact::{Obstacle, ObstacleShape};
+use crate::contact::resolution::DEFAULT_REGULARIZATION;
+use crate::contact::{ContactMethod, ContactSettings, FrictionLaw, Obstacle, ObstacleShape};
 use crate::dim::{Dim, Kinematics, SpatialDim};
 use crate::element::ElementKind;
 use crate::error::{Error, Result};
@@ -826,8 +827,23 @@ where
     pub probes: Vec<Probe>,
     /// Output options.
     pub output: OutputOptions,
-    /// The contact section as written.
-    pub contact: ContactSection,
+    /// Contact method, penalty and default friction.
+    pub contact: ContactSettings,
+}
+
+impl<const D: usize> Scene<D>
+where
+    Dim<D>: SpatialDim<D>,
+{
+    /// The simulation this scene describes.
+    pub fn simulation(&self) -> Result<crate::simulation::Simulation<D>> {
+        crate::simulation::Simulation::with_contact(
+            self.settings.clone(),
+            self.bodies.clone(),
+            self.obstacles.clone(),
+            self.contact.clone(),
+        )
+    }
 }
 
 impl LoadedScene {
@@ -965,7 +981,7 @@ impl LoadedScene {
             mass,
         };
 
-        self.check_contact()?;
+        let contact = self.check_contact()?;
 
         if self.file.bodies.is_empty() {
             return Err(self.error("bodies", "no [[bodies]]", "at least one body"));
@@ -1052,7 +1068,7 @@ impl LoadedScene {
                 obstacle.velocity = self.vector::<D>(&format!("{key}.velocity"), v)?;
             }
             if let Some(f) = &spec.friction {
-                self.friction(&format!("{key}.friction"), f)?;
+                obstacle.friction = Some(self.friction(&format!("{key}.friction"), f)?);
             }
             obstacles.push(obstacle);
         }
@@ -1113,11 +1129,11 @@ impl LoadedScene {
                 history_interval: out.history_interval,
                 vtk_interval: out.vtk_interval,
             },
-            contact: self.file.contact.clone(),
+            contact,
         })
     }
 
-    fn check_contact(&self) -> Result<()> {
+    fn check_contact(&self) -> Result<ContactSettings> {
         let c = &self.file.contact;
         const METHODS: [&str; 4] = [
             "soft_way",
@@ -1142,10 +1158,38 @@ impl LoadedScene {
             ));
         }
         self.positive("contact.gap_tolerance", c.gap_tolerance, "m")?;
-        self.friction("contact.friction", &c.friction)
+        let method = match c.method.as_str() {
+            "soft_way" => ContactMethod::SoftWay,
+            "augmented_lagrangian" => ContactMethod::AugmentedLagrangian,
+            "explicit_projection" => ContactMethod::ExplicitProjection,
+            _ => ContactMethod::ImplicitProjection,
+        };
+        let friction = self.friction("contact.friction", &c.friction)?;
+        let any_friction = friction != FrictionLaw::Frictionless
+            || self.file.obstacles.iter().any(|o| {
+                o.friction
+                    .as_ref()
+                    .is_some_and(|f| *f != FrictionSpec::Frictionless)
+            });
+        if method == ContactMethod::ExplicitProjection && any_friction {
+            return Err(self.error(
+                "contact.method",
+                "\"explicit_projection\" with a friction law",
+                "a method with a normal force inside the step to carry friction (soft_way, \
+                 implicit_projection or augmented_lagrangian), or law = \"frictionless\"",
+            ));
+        }
+        Ok(ContactSettings {
+            method,
+            penalty: c.penalty.unwrap_or(0.0),
+            self_contact: c.self_contact,
+            gap_tolerance: c.gap_tolerance,
+            friction,
+            ..ContactSettings::default()
+        })
     }
 
-    fn friction(&self, key: &str, f: &FrictionSpec) -> Result<()> {
+    fn friction(&self, key: &str, f: &FrictionSpec) -> Result<FrictionLaw> {
         let non_negative = |k: &str, v: f64| {
             if v >= 0.0 && v.is_finite() {
                 Ok(())
@@ -1153,32 +1197,45 @@ impl LoadedScene {
                 Err(self.error(&format!("{key}.{k}"), v, "a finite value >= 0"))
             }
         };
-        match f {
-            FrictionSpec::Frictionless => Ok(()),
+        let regularization = |r: &Option<f64>| -> Result<f64> {
+            match r {
+                Some(r) => self.positive(&format!("{key}.regularization"), *r, "m/s"),
+                None => Ok(DEFAULT_REGULARIZATION),
+            }
+        };
+        Ok(match f {
+            FrictionSpec::Frictionless => FrictionLaw::Frictionless,
             FrictionSpec::Coulomb {
                 coefficient,
-                regularization,
+                regularization: r,
             } => {
                 non_negative("coefficient", *coefficient)?;
-                regularization.map_or(Ok(()), |r| {
-                    self.positive(&format!("{key}.regularization"), r, "m/s")
-                        .map(|_| ())
-                })
+                FrictionLaw::Coulomb {
+                    coefficient: *coefficient,
+                    regularization: regularization(r)?,
+                }
             }
-            FrictionSpec::Tresca { limit } => non_negative("limit", *limit),
+            FrictionSpec::Tresca { limit } => {
+                non_negative("limit", *limit)?;
+                FrictionLaw::Tresca {
+                    limit: *limit,
+                    regularization: DEFAULT_REGULARIZATION,
+                }
+            }
             FrictionSpec::Viscoplastic {
                 coefficient,
                 exponent,
-                regularization,
+                regularization: r,
             } => {
                 non_negative("coefficient", *coefficient)?;
                 non_negative("exponent", *exponent)?;
-                regularization.map_or(Ok(()), |r| {
-                    self.positive(&format!("{key}.regularization"), r, "m/s")
-                        .map(|_| ())
-                })
+                FrictionLaw::Viscoplastic {
+                    coefficient: *coefficient,
+                    exponent: *exponent,
+                    regularization: regularization(r)?,
+                }
             }
-        }
+        })
     }
 
     fn material(&self, key: &str, m: &MaterialSpec) -> Result<Material> {
