@@ -5,7 +5,6 @@
 mod common;
 
 use common::{block, vec_d};
-use nalgebra::SVector;
 use softway::contact::{ContactMethod, ContactSettings, FrictionLaw, Obstacle, ObstacleShape};
 use softway::dim::{Dim, SpatialDim};
 use softway::prelude::*;
@@ -159,12 +158,6 @@ where
     check_impact::<D>(ContactMethod::AugmentedLagrangian);
 }
 
-both_dims!(
-    bar_impact_soft_way,
-    bar_impact_implicit_projection,
-    bar_impact_augmented_lagrangian
-);
-
 #[test]
 fn print_bar_impact_figures() {
     for method in [
@@ -180,3 +173,91 @@ fn print_bar_impact_figures() {
         );
     }
 }
+
+/// Two identical bars [0, L] and [L + GAP, 2 L + GAP] meeting head on at +-V0.
+fn bars_head_on<const D: usize>(method: ContactMethod)
+where
+    Dim<D>: SpatialDim<D>,
+{
+    let cells = 60;
+    let left = block::<D>([L, 0.1, 0.1], [cells, 1, 1], false);
+    let mut right = left.clone();
+    right.translate(&vec_d::<D>([L + GAP, 0.0, 0.0]));
+    let h = 2.0 * L / 200.0;
+    let mut sim = Simulation::<D>::builder()
+        .time_step(h)
+        .body(Body::new("left", left, bar_material()).with_velocity(vec_d::<D>([V0, 0.0, 0.0])))
+        .body(Body::new("right", right, bar_material()).with_velocity(vec_d::<D>([-V0, 0.0, 0.0])))
+        .contact(contact(method))
+        .build()
+        .unwrap();
+    let mean_velocity = |sim: &Simulation<D>, b: usize| -> f64 {
+        let n = sim.bodies()[b].mesh.nodes.len();
+        (0..n)
+            .map(|i| sim.velocity(BodyId(b), i).unwrap()[0])
+            .sum::<f64>()
+            / n as f64
+    };
+    let m = softway::assembly::symmetric_dot;
+    let momentum = |sim: &Simulation<D>| -> f64 {
+        let ones: Vec<f64> = (0..sim.node_count() * D)
+            .map(|i| if i % D == 0 { 1.0 } else { 0.0 })
+            .collect();
+        m(sim.mass_matrix(), &ones, &sim.state().velocity)
+    };
+    let p0 = momentum(&sim);
+    let scale = sim.body_mass(BodyId(0)) * V0;
+    let (mut first, mut last, mut n) = (None, 0, 0);
+    while sim.state().time < GAP / (2.0 * V0) + 2.0 * L + 0.5 {
+        let r = sim.step().unwrap();
+        n += 1;
+        if r.active_contacts > 0 {
+            first.get_or_insert(n);
+            last = n;
+        }
+        assert!(
+            (momentum(&sim) - p0).abs() < 1e-10 * scale,
+            "momentum drifts"
+        );
+    }
+    let duration = (last - first.expect("the bars meet") + 1) as f64 * h;
+    assert!(
+        (duration - 2.0 * L).abs() < 0.05 * 2.0 * L,
+        "{}: duration {duration}",
+        method.name()
+    );
+    let (vl, vr) = (mean_velocity(&sim, 0), mean_velocity(&sim, 1));
+    assert!(
+        (vl + V0).abs() < 0.05 * V0 && (vr - V0).abs() < 0.05 * V0,
+        "{}: {vl} {vr}",
+        method.name()
+    );
+    // Symmetry: the two bars mirror each other.
+    assert!(
+        (vl + vr).abs() < 1e-6 * V0,
+        "{}: asymmetric {vl} {vr}",
+        method.name()
+    );
+}
+
+fn two_bars_soft_way<const D: usize>()
+where
+    Dim<D>: SpatialDim<D>,
+{
+    bars_head_on::<D>(ContactMethod::SoftWay);
+}
+
+fn two_bars_implicit_projection<const D: usize>()
+where
+    Dim<D>: SpatialDim<D>,
+{
+    bars_head_on::<D>(ContactMethod::ImplicitProjection);
+}
+
+both_dims!(
+    bar_impact_soft_way,
+    bar_impact_implicit_projection,
+    bar_impact_augmented_lagrangian,
+    two_bars_soft_way,
+    two_bars_implicit_projection,
+);

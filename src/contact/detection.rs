@@ -531,7 +531,10 @@ where
             groups.push((a, b));
             a = b;
         }
-        let normals = if self.options.self_contact {
+        // Facets are only paired with nodes that face them (opposed normals), for self-contact
+        // and between bodies alike: at flush corners the closest facet is otherwise a side
+        // face that the node merely lies on the extension of.
+        let normals = if self.options.self_contact || self.options.deformable_pairs {
             Some(self.node_normals(x))
         } else {
             None
@@ -584,9 +587,7 @@ where
                                 }
                                 let key = MasterKey::Body(body);
                                 let prev = previous.get(&(node, key)).copied();
-                                let own = normals.as_ref().filter(|_| {
-                                    body == surface.facet_body[surface.facets_of_node(node)[0]]
-                                });
+                                let own = normals.as_ref();
                                 let choice = choose(
                                     &p,
                                     cands[i..j].iter().map(|c| match c.1 {
@@ -594,7 +595,7 @@ where
                                         Master::Obstacle(_) => unreachable!("facets only"),
                                     }),
                                     |f| surface.facets[f].map(|v| x[v]),
-                                    // Self-contact: only facets facing the node.
+                                    // Only facets facing the node.
                                     |n| own.is_none_or(|nn| nn[node].dot(n) < 0.0),
                                     prev,
                                     options.hysteresis,

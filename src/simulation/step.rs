@@ -47,6 +47,9 @@ struct PairTerms<const D: usize> {
 struct ContactTerms<const D: usize> {
     forces: Vec<f64>,
     entries: Vec<(usize, usize, f64)>,
+    /// The geometric part of the tangent (variation of the normal and of the closest point):
+    /// kept while the iteration matrix stays positive definite.
+    geometric: Vec<(usize, usize, f64)>,
     pairs: Vec<PairTerms<D>>,
     energy: f64,
     dissipation_rate: f64,
@@ -438,17 +441,15 @@ where
                 };
                 for (a, &(na, ca)) in nodes.iter().enumerate() {
                     for (b, &(nb, cb)) in nodes.iter().enumerate() {
-                        let mut block =
+                        let block =
                             nn * (normal_stiffness * ca * cb) - friction_tangent * (0.5 * ca * cb);
-                        if let Some(hess) = &geometric {
-                            for i in 0..D {
-                                for j in 0..D {
-                                    block[(i, j)] -=
-                                        0.5 * h * pressure * area * hess[a * D + i][b * D + j];
-                                }
-                            }
-                        }
                         block_entries(&mut terms.entries, na, nb, &block);
+                        if let Some(hess) = &geometric {
+                            let g = SMatrix::<f64, D, D>::from_fn(|i, j| {
+                                -0.5 * h * pressure * area * hess[a * D + i][b * D + j]
+                            });
+                            block_entries(&mut terms.geometric, na, nb, &g);
+                        }
                     }
                 }
             }
@@ -593,7 +594,19 @@ where
                 let detector = self.detector.as_mut().expect("contact_in_newton");
                 detector.update_candidates(&x0, &x_gap, &obstacles_t0, &t1_vectors);
                 candidates = detector.candidates().len();
-                let pairs = detector.pairs(&x_gap, &obstacles_t1);
+                let mut pairs = detector.pairs(&x_gap, &obstacles_t1);
+                // One pass between two bodies: the nodes of the body listed first are slaves
+                // against the facets of the other (no duplicated constraints). Self-contact
+                // keeps both sides of a fold.
+                let facet_body = detector.surface().facet_body();
+                let offsets = &self.node_offsets;
+                pairs.retain(|p| match p.master {
+                    Master::Facet(f) => {
+                        let slave_body = offsets.partition_point(|&o| o <= p.slave) - 1;
+                        facet_body[f] >= slave_body
+                    }
+                    Master::Obstacle(_) => true,
+                });
                 if method == ContactMethod::ImplicitProjection && !active_initialised {
                     // Points predicted to penetrate with v1 = v0 start active: this also
                     // catches points already touching that the master moves into.
@@ -774,13 +787,21 @@ where
                     system.cholesky.solve_in_place(&mut increment);
                 }
             } else {
-                let matrix = self.contact_matrix(&terms.entries)?;
-                let solver = match self.contact_solver.take() {
+                // The consistent tangent first; where its geometric part makes the matrix
+                // indefinite (large pressure on a soft body), Newton goes on without it.
+                let mut with_geometry = terms.entries.clone();
+                with_geometry.extend_from_slice(&terms.geometric);
+                let mut solver = match self.contact_solver.take() {
                     Some(s) => s,
-                    None => SparseCholesky::analyse(&matrix)?,
+                    None => SparseCholesky::analyse(&self.contact_matrix(&with_geometry)?)?,
                 };
-                let mut solver = solver;
-                solver.factor_any(&matrix, step)?;
+                let factored = !terms.geometric.is_empty()
+                    && solver
+                        .factor_any(&self.contact_matrix(&with_geometry)?, step)
+                        .is_ok();
+                if !factored {
+                    solver.factor_any(&self.contact_matrix(&terms.entries)?, step)?;
+                }
                 solver.solve_in_place(&mut increment);
                 self.contact_solver = Some(solver);
             }
