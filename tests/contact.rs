@@ -260,4 +260,133 @@ both_dims!(
     bar_impact_augmented_lagrangian,
     two_bars_soft_way,
     two_bars_implicit_projection,
+    coulomb_incline,
+    tresca_incline,
+    viscoplastic_incline,
 );
+
+const G: f64 = 9.81;
+
+/// A block resting on a plane y = 0 under gravity tilted by `theta` (it slides along +x);
+/// returns its mean x velocity after `time` seconds and the simulation.
+fn incline<const D: usize>(theta: f64, law: FrictionLaw, time: f64) -> (f64, Simulation<D>)
+where
+    Dim<D>: SpatialDim<D>,
+{
+    let mesh = block::<D>([0.1, 0.05, 0.05], [4, 2, 2], false);
+    let ground = Obstacle::new(
+        "ground",
+        ObstacleShape::Halfspace {
+            point: vec_d::<D>([0.0, 0.0, 0.0]),
+            normal: vec_d::<D>([0.0, 1.0, 0.0]),
+        },
+    );
+    let mut sim = Simulation::<D>::builder()
+        .time_step(1e-3)
+        // alpha = 1, beta = 1/2: unconditionally stable, exact under constant acceleration.
+        .scheme(1.0, Beta::Trapezoid)
+        .tolerance(1e-6)
+        .gravity(vec_d::<D>([G * theta.sin(), -G * theta.cos(), 0.0]))
+        .body(Body::new(
+            "block",
+            mesh,
+            Material::LinearElastic(LinearElastic::new(1e7, 0.3, 1000.0).unwrap()),
+        ))
+        .obstacle(ground)
+        .contact(ContactSettings {
+            method: ContactMethod::SoftWay,
+            penalty: 1e11,
+            friction: law,
+            ..ContactSettings::default()
+        })
+        .build()
+        .unwrap();
+    while sim.state().time < time - 1e-9 {
+        sim.step().unwrap();
+    }
+    let n = sim.node_count();
+    let vx = (0..n)
+        .map(|i| sim.velocity(BodyId(0), i).unwrap()[0])
+        .sum::<f64>()
+        / n as f64;
+    (vx, sim)
+}
+
+fn coulomb_incline<const D: usize>()
+where
+    Dim<D>: SpatialDim<D>,
+{
+    let (theta, mu) = (30f64.to_radians(), 0.3);
+    let law = FrictionLaw::Coulomb {
+        coefficient: mu,
+        regularization: 1e-6,
+    };
+    let (v, sim) = incline::<D>(theta, law, 0.3);
+    let a = v / 0.3;
+    let exact = G * (theta.sin() - mu * theta.cos());
+    assert!(
+        (a - exact).abs() < 0.02 * exact,
+        "a = {a}, expected {exact}"
+    );
+    // Friction dissipates, and the energy account balances.
+    let e = sim.energies();
+    assert!(e.dissipated > 0.0);
+    let balance = (e.total() - sim.initial_energy() - e.external_work + e.dissipated).abs();
+    assert!(
+        balance < 0.01 * e.external_work,
+        "energy account off by {balance} of {}",
+        e.external_work
+    );
+    // It sticks when tan(theta) < mu.
+    let (v, _) = incline::<D>(10f64.to_radians(), law, 0.3);
+    assert!(v.abs() < 1e-4, "sliding at {v} although tan(theta) < mu");
+}
+
+fn tresca_incline<const D: usize>()
+where
+    Dim<D>: SpatialDim<D>,
+{
+    // |F_t| = limit x contact area: a = g sin(theta) - limit A / m.
+    let theta = 30f64.to_radians();
+    let limit = 100.0;
+    let (v, sim) = incline::<D>(
+        theta,
+        FrictionLaw::Tresca {
+            limit,
+            regularization: 1e-6,
+        },
+        0.3,
+    );
+    let area = if D == 2 { 0.1 } else { 0.1 * 0.05 };
+    let mass = sim.body_mass(BodyId(0));
+    let exact = G * theta.sin() - limit * area / mass;
+    assert!(
+        (v / 0.3 - exact).abs() < 0.02 * exact,
+        "a = {}, expected {exact}",
+        v / 0.3
+    );
+}
+
+fn viscoplastic_incline<const D: usize>()
+where
+    Dim<D>: SpatialDim<D>,
+{
+    // p = 1: F_t = -a A v, so v(t) = v_T (1 - exp(-t / tau)), tau = m / (a A).
+    let theta = 30f64.to_radians();
+    let coefficient = 200.0;
+    let law = FrictionLaw::Viscoplastic {
+        coefficient,
+        exponent: 1.0,
+        regularization: 1e-9,
+    };
+    let (v, sim) = incline::<D>(theta, law, 0.3);
+    let area = if D == 2 { 0.1 } else { 0.1 * 0.05 };
+    let mass = sim.body_mass(BodyId(0));
+    let tau = mass / (coefficient * area);
+    let v_terminal = G * theta.sin() * tau;
+    let exact = v_terminal * (1.0 - (-0.3 / tau).exp());
+    assert!(
+        (v - exact).abs() < 0.02 * exact,
+        "v = {v}, expected {exact}"
+    );
+}

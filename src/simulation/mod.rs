@@ -218,6 +218,9 @@ pub struct State {
     /// Augmented Lagrangian multipliers carried from step to step: (slave node, master,
     /// contact pressure [Pa]).
     pub multipliers: Vec<(usize, MasterId, f64)>,
+    /// The normal forces that set the friction thresholds (slave node, master, force [N]),
+    /// carried from step to step as the start of the fixed point on the threshold.
+    pub friction_normals: Vec<(usize, MasterId, f64)>,
 }
 
 /// The master side of a contact, as remembered between iterations and steps.
@@ -328,6 +331,18 @@ where
     /// Kinematics (2D: plane strain, plane stress, axisymmetric).
     pub fn kinematics(mut self, k: Kinematics) -> Self {
         self.settings.kinematics = k;
+        self
+    }
+
+    /// Relative residual tolerance of Newton.
+    pub fn tolerance(mut self, tolerance: f64) -> Self {
+        self.settings.tolerance = tolerance;
+        self
+    }
+
+    /// Largest number of Newton and contact iterations in one step.
+    pub fn max_iterations(mut self, n: usize) -> Self {
+        self.settings.max_iterations = n;
         self
     }
 
@@ -593,6 +608,7 @@ where
             obstacle_velocities,
             contact_energy: 0.0,
             multipliers: Vec::new(),
+            friction_normals: Vec::new(),
         };
         let mut sim = Simulation {
             settings,

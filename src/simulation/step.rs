@@ -221,23 +221,26 @@ where
         SVector::from_column_slice(&self.state.obstacle_velocities[k * D..k * D + D])
     }
 
-    /// Each boundary node's share of the contact surface [m^2] at positions `x` (length x unit
-    /// thickness in plane kinematics, `2 pi r` x length in axisymmetric ones).
-    fn tributary_areas(&self, x: &[SVector<f64, D>]) -> Vec<f64> {
-        let mut area = vec![0.0; x.len()];
+    /// Each boundary node's shares of the surface [m^2] at positions `x`, with the outward
+    /// normal of the face each share comes from (length x unit thickness in plane kinematics,
+    /// `2 pi r` x length in axisymmetric ones).
+    fn tributary_areas(&self, x: &[SVector<f64, D>]) -> Vec<Vec<(f64, SVector<f64, D>)>> {
+        let mut shares: Vec<Vec<(f64, SVector<f64, D>)>> = vec![Vec::new(); x.len()];
         let axisymmetric = self.settings.kinematics == crate::dim::Kinematics::Axisymmetric;
         for face in &self.boundary_faces {
+            let first: [SVector<f64, D>; D] = std::array::from_fn(|i| x[face[i]]);
+            let (_, normal) = <Dim<D>>::facet_measure_normal(&first);
             if D == 2 {
                 let (a, b) = (face[0], face[1]);
                 let length = (x[b] - x[a]).norm();
                 if axisymmetric {
                     let (ra, rb) = (x[a][0].max(0.0), x[b][0].max(0.0));
                     let tau = 2.0 * std::f64::consts::PI * length / 6.0;
-                    area[a] += tau * (2.0 * ra + rb);
-                    area[b] += tau * (ra + 2.0 * rb);
+                    shares[a].push((tau * (2.0 * ra + rb), normal));
+                    shares[b].push((tau * (ra + 2.0 * rb), normal));
                 } else {
-                    area[a] += 0.5 * length;
-                    area[b] += 0.5 * length;
+                    shares[a].push((0.5 * length, normal));
+                    shares[b].push((0.5 * length, normal));
                 }
             } else {
                 let tri = |p: usize, q: usize, r: usize| {
@@ -250,11 +253,18 @@ where
                     tri(face[0], face[1], face[2])
                 };
                 for &n in face {
-                    area[n] += total / face.len() as f64;
+                    shares[n].push((total / face.len() as f64, normal));
                 }
             }
         }
-        area
+        shares
+    }
+
+    /// The contact area of a slave node against a master of normal `n`: its face shares
+    /// projected on the contact plane (faces turned away from the master do not count, so a
+    /// corner node of a flat face carries its half of that face only).
+    fn contact_area(shares: &[(f64, SVector<f64, D>)], n: &SVector<f64, D>) -> f64 {
+        shares.iter().map(|(a, nf)| a * (-nf.dot(n)).max(0.0)).sum()
     }
 
     /// Hessian of the distance to an analytic obstacle at a slave point (zero on faces).
@@ -303,8 +313,9 @@ where
         v0: &[f64],
         v1: &[f64],
         h: f64,
-        areas: &[f64],
+        areas: &[Vec<(f64, SVector<f64, D>)>],
         multipliers: &BTreeMap<(usize, MasterId), f64>,
+        friction_normals: &BTreeMap<(usize, MasterId), f64>,
         active: &BTreeSet<(usize, MasterId)>,
         diagonal: &[f64],
     ) -> ContactTerms<D> {
@@ -324,7 +335,7 @@ where
         let surface = detector.surface();
         for pair in pairs {
             let s = pair.slave;
-            let area = areas[s];
+
             // Master nodes with their weights, the normal and the gap.
             let (key, nodes, normal, gap, master_velocity, obstacle, master_point) =
                 match pair.master {
@@ -370,6 +381,7 @@ where
                 }
                 r
             };
+            let area = Self::contact_area(&areas[s], &normal);
             let (r0, r1) = (relative(v0), relative(v1));
             let projector = SMatrix::<f64, D, D>::identity() - normal * normal.transpose();
             let slip = projector * (r0 + r1) * 0.5;
@@ -401,14 +413,22 @@ where
                 }
                 ContactMethod::ExplicitProjection => (0.0, 0.0, 0.0),
             };
+            // Friction takes the normal force of the previous pass (a fixed point on the
+            // friction threshold: a sequence of Tresca problems, each with a symmetric tangent).
             let law = obstacle
                 .and_then(|k| self.obstacles[k].friction)
                 .unwrap_or(self.contact.friction);
-            let (friction, friction_tangent) = if normal_force > 0.0 {
-                law.force(normal_force, area, &slip, &normal)
-            } else {
-                (SVector::zeros(), SMatrix::zeros())
+            // Only Coulomb's threshold depends on the force; the other laws need the status.
+            let threshold = match law {
+                FrictionLaw::Coulomb { .. } => friction_normals.get(&key).copied().unwrap_or(0.0),
+                _ => normal_force,
             };
+            let (friction, friction_tangent) =
+                if threshold > 0.0 && law != FrictionLaw::Frictionless {
+                    law.force(threshold, area, &slip, &normal)
+                } else {
+                    (SVector::zeros(), SMatrix::zeros())
+                };
             let force = normal * normal_force + friction;
             for &(n, c) in &nodes {
                 for k in 0..D {
@@ -561,6 +581,17 @@ where
             .map(|s| s.diagonal.clone())
             .unwrap_or_default();
 
+        let frictional = self.contact.friction != FrictionLaw::Frictionless
+            || self
+                .obstacles
+                .iter()
+                .any(|o| o.friction.is_some_and(|f| f != FrictionLaw::Frictionless));
+        let mut friction_normals: BTreeMap<(usize, MasterId), f64> = self
+            .state
+            .friction_normals
+            .iter()
+            .map(|&(s, m, f)| ((s, m), f))
+            .collect();
         let mut multipliers: BTreeMap<(usize, MasterId), f64> =
             if method == ContactMethod::AugmentedLagrangian {
                 self.state
@@ -588,6 +619,9 @@ where
         let relative;
         let mut terms = ContactTerms::<D>::default();
         let mut candidates = 0;
+        let mut previous_norm = f64::INFINITY;
+        let mut last_increment: Vec<f64> = Vec::new();
+        let mut backtracks = 0;
         loop {
             let x_gap = end_positions(&self.reference, &u0, &v0, &v1, h);
             if contact_in_newton {
@@ -636,6 +670,7 @@ where
                     h,
                     &areas,
                     &multipliers,
+                    &friction_normals,
                     &active,
                     &diagonal,
                 );
@@ -677,6 +712,22 @@ where
                     detail: "the residual became non-finite".into(),
                 });
             }
+            // Backtracking: contact and friction are not smooth, and a full Newton step can
+            // overshoot (first touch with a stiff penalty); halve it while the residual grows.
+            if contact_in_newton
+                && !last_increment.is_empty()
+                && norm > previous_norm
+                && backtracks < 4
+            {
+                for i in 0..ndof {
+                    last_increment[i] *= 0.5;
+                    v1[i] -= last_increment[i];
+                }
+                backtracks += 1;
+                continue;
+            }
+            backtracks = 0;
+            previous_norm = norm;
             if rel <= self.settings.tolerance {
                 // Newton converged for the current multipliers and active set.
                 let mut done = true;
@@ -752,11 +803,49 @@ where
                     }
                     _ => {}
                 }
+                if done && frictional {
+                    // The friction threshold follows the normal force until it settles.
+                    let scale = terms
+                        .pairs
+                        .iter()
+                        .map(|p| p.normal_force.abs())
+                        .fold(0.0, f64::max);
+                    let mut change: f64 = 0.0;
+                    let mut next = BTreeMap::new();
+                    for p in &terms.pairs {
+                        let f = p.normal_force.max(0.0);
+                        let old = friction_normals.get(&p.key).copied().unwrap_or(0.0);
+                        let law = p
+                            .obstacle
+                            .and_then(|k| self.obstacles[k].friction)
+                            .unwrap_or(self.contact.friction);
+                        // Coulomb follows the force; the other laws only need the contact status.
+                        if matches!(law, FrictionLaw::Coulomb { .. }) {
+                            change = change.max((f - old).abs());
+                        }
+                        if f > 0.0 {
+                            next.insert(p.key, f);
+                        }
+                    }
+                    change = change.max(
+                        friction_normals
+                            .iter()
+                            .filter(|(k, _)| !next.contains_key(k))
+                            .map(|(_, f)| f.abs())
+                            .fold(0.0, f64::max),
+                    );
+                    if change > 1e-6 * scale.max(f64::MIN_POSITIVE) {
+                        done = false;
+                        friction_normals = next;
+                    }
+                }
                 if done {
                     relative = rel;
                     break;
                 }
                 passes += 1;
+                previous_norm = f64::INFINITY;
+                last_increment.clear();
                 if passes > self.contact.max_passes {
                     return Err(Error::NotConverged {
                         step,
@@ -812,6 +901,7 @@ where
                     inc2 += increment[i] * increment[i];
                 }
             }
+            last_increment = increment;
             iterations += 1;
             let records = self.records(&terms, &x_gap, &active);
             recorder.iteration(
@@ -1009,6 +1099,10 @@ where
         state.obstacle_translations = translations_t1;
         state.contact_energy = terms.energy;
         state.multipliers = multipliers.iter().map(|(&(s, m), &l)| (s, m, l)).collect();
+        state.friction_normals = friction_normals
+            .iter()
+            .map(|(&(s, m), &f)| (s, m, f))
+            .collect();
         if method != ContactMethod::AugmentedLagrangian {
             state.multipliers.clear();
         }
