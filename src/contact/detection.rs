@@ -258,6 +258,11 @@ where
     }
 }
 
+/// `x > 0`, false for NaN.
+fn positive(x: f64) -> bool {
+    x > 0.0
+}
+
 /// The closest facet chosen for one point.
 #[derive(Debug, Clone, Copy)]
 struct Choice<const D: usize> {
@@ -289,7 +294,7 @@ where
     for f in candidates {
         let v = verts(f);
         let (measure, normal) = <Dim<D>>::facet_measure_normal(&v);
-        if !(measure > 0.0) || !accept(&normal) {
+        if !positive(measure) || !accept(&normal) {
             continue;
         }
         let Some(proj) = <Dim<D>>::project_on_facet(p, &v) else {
@@ -343,6 +348,9 @@ where
     obstacle_facets: Vec<Option<ObstacleFacets<D>>>,
     previous: HashMap<(usize, MasterKey), usize>,
 }
+
+/// Slaves per traversal of the hierarchy in the broad phase.
+const GROUP: usize = 8;
 
 /// Candidate pairs of the slaves `slaves[start..start + chunk.len()]`.
 type Chunk = Vec<(usize, Master)>;
@@ -471,31 +479,57 @@ where
         }
         self.sync_obstacles(obstacles);
         let tree = self.tree.as_ref().expect("built above");
-        let (surface, options, cache) = (&self.surface, &self.options, &self.obstacle_facets);
+        let (surface, options, cache, facet_boxes) = (
+            &self.surface,
+            &self.options,
+            &self.obstacle_facets,
+            &self.facet_boxes,
+        );
         self.candidates = map_chunks(&surface.slaves, |start, slaves| -> Chunk {
             let mut out = Vec::new();
             let mut hits = Vec::new();
-            for (i, &node) in slaves.iter().enumerate() {
-                let body = surface.slave_body[start + i];
-                let seg = Aabb::from_points([&x0[node], &x1[node]]);
-                for (k, o) in obstacles.iter().enumerate() {
-                    let swept = (o.translation, obstacle_translation_t1[k]);
-                    if obstacle_overlaps(o, swept, &seg, margin, cache[k].as_ref()) {
-                        out.push((node, Master::Obstacle(k)));
-                    }
-                }
+            let mut ring = Vec::new();
+            // A few neighbouring slaves share one traversal of the hierarchy: their boxes are
+            // tiny and close, so one query with their union costs about as much as one of
+            // theirs, and the hits are then re-tested per slave.
+            for (g, group) in slaves.chunks(GROUP).enumerate() {
+                let segs: Vec<Aabb<D>> = group
+                    .iter()
+                    .map(|&n| Aabb::from_points([&x0[n], &x1[n]]))
+                    .collect();
+                let union = segs.iter().skip(1).fold(segs[0], |u, b| u.merged(b));
                 hits.clear();
-                tree.query(&seg, &mut hits);
+                tree.query(&union, &mut hits);
                 hits.sort_unstable();
-                for &f in &hits {
-                    let fb = surface.facet_body[f];
-                    let allowed = if fb == body {
-                        options.self_contact && !surface.is_excluded(node, f)
-                    } else {
-                        options.deformable_pairs
-                    };
-                    if allowed {
-                        out.push((node, Master::Facet(f)));
+                for (i, (&node, seg)) in group.iter().zip(&segs).enumerate() {
+                    let body = surface.slave_body[start + g * GROUP + i];
+                    for (k, o) in obstacles.iter().enumerate() {
+                        let swept = (o.translation, obstacle_translation_t1[k]);
+                        if obstacle_overlaps(o, swept, seg, margin, cache[k].as_ref()) {
+                            out.push((node, Master::Obstacle(k)));
+                        }
+                    }
+                    // The nodes of the facets around the slave: a facet holding one of them
+                    // is excluded from self-contact.
+                    ring.clear();
+                    if options.self_contact {
+                        for &f in surface.facets_of_node(node) {
+                            ring.extend_from_slice(&surface.facets[f]);
+                        }
+                    }
+                    for &f in &hits {
+                        if !facet_boxes[f].intersects(seg) {
+                            continue;
+                        }
+                        let allowed = if surface.facet_body[f] == body {
+                            options.self_contact
+                                && !surface.facets[f].iter().any(|v| ring.contains(v))
+                        } else {
+                            options.deformable_pairs
+                        };
+                        if allowed {
+                            out.push((node, Master::Facet(f)));
+                        }
                     }
                 }
             }
@@ -655,7 +689,7 @@ where
     match &o.shape {
         ObstacleShape::Halfspace { point, normal } => {
             let norm = normal.norm();
-            if !(norm > 0.0) {
+            if !positive(norm) {
                 return false;
             }
             let n = normal / norm;
@@ -730,7 +764,7 @@ where
     match &o.shape {
         ObstacleShape::Halfspace { point, normal } => {
             let norm = normal.norm();
-            if !(norm > 0.0) {
+            if !positive(norm) {
                 return None;
             }
             let n = normal / norm;
