@@ -11,6 +11,8 @@ to 0.17 mean edge lengths) it times, inflation radius 0, medians of several runs
     work that matches softway's node-facet candidates;
   * LBVH all: Candidates().build(mesh, V0, V1, 0, LBVH()) (vertex-face + edge-edge + ...);
   * HashGrid all (ipctk's default broad phase), for the smaller surfaces.
+It also counts ipctk's face-vertex candidates that softway's self-contact exclusion (facets
+around the vertex and their neighbours) keeps: softway must report exactly those.
 With softway's medians on the command line (milliseconds, same order as the files) it prints
 the ratios.
 """
@@ -34,6 +36,20 @@ def load_obj(path):
             elif line.startswith("f "):
                 f.append(line.split()[1:4])
     return np.asarray(v, dtype=np.float64), np.asarray(f, dtype=np.int32) - 1
+
+
+def outside_exclusion(faces, n_vertices, fv_list):
+    """ipctk's face-vertex candidates that softway's self-contact rule keeps: the face holds
+    no vertex of a face around the vertex. softway reports exactly these (with margin 0)."""
+    ring = [set() for _ in range(n_vertices)]
+    for a, b, c in faces.tolist():
+        for v in (a, b, c):
+            ring[v].update((a, b, c))
+    count = 0
+    for cand in fv_list:
+        if not ring[cand.vertex_id].intersection(faces[cand.face_id].tolist()):
+            count += 1
+    return count
 
 
 def median_time(fn, repeats):
@@ -66,9 +82,11 @@ def main():
         def fv():
             bp = ipctk.LBVH()
             bp.build(v0, v1, edges, faces, 0.0)
-            return len(bp.detect_face_vertex_candidates())
+            return bp.detect_face_vertex_candidates()
 
-        t_fv, n_fv = median_time(fv, repeats)
+        t_fv, fv_list = median_time(fv, repeats)
+        n_fv = len(fv_list)
+        outside = outside_exclusion(faces, len(v0), fv_list)
         mesh = ipctk.CollisionMesh(v0, edges, faces)
 
         def all_candidates(bp):
@@ -81,7 +99,7 @@ def main():
         t_all, (n_fv_all, n_ee) = median_time(all_candidates(ipctk.LBVH), repeats)
         line = (
             f"{len(faces):>8} faces {len(v0):>7} vertices | LBVH face-vertex {t_fv * 1e3:8.1f} ms "
-            f"({n_fv} candidates) | LBVH all {t_all * 1e3:8.1f} ms (fv {n_fv_all}, ee {n_ee})"
+            f"({n_fv} candidates, {outside} outside softway's exclusion) | LBVH all {t_all * 1e3:8.1f} ms (fv {n_fv_all}, ee {n_ee})"
         )
         if len(faces) <= 200_000:
             t_grid, _ = median_time(all_candidates(ipctk.HashGrid), repeats)

@@ -145,6 +145,17 @@ where
             .any(|&g| self.facets[g].iter().any(|v| f.contains(v)))
     }
 
+    /// The area-weighted outward normal of a surface node at positions `x` [m] (not
+    /// normalised; zero off the surface).
+    pub fn node_normal(&self, node: usize, x: &[SVector<f64, D>]) -> SVector<f64, D> {
+        let mut n = SVector::zeros();
+        for &f in self.facets_of_node(node) {
+            let (m, normal) = <Dim<D>>::facet_measure_normal(&self.facets[f].map(|v| x[v]));
+            n += normal * m;
+        }
+        n
+    }
+
     /// One past the largest node id used.
     pub fn node_count(&self) -> usize {
         self.node_facet_offsets.len().saturating_sub(1)
@@ -565,11 +576,6 @@ where
             groups.push((a, b));
             a = b;
         }
-        let normals = if self.options.self_contact {
-            Some(self.node_normals(x))
-        } else {
-            None
-        };
         let (surface, options, cache, previous, cands) = (
             &self.surface,
             &self.options,
@@ -618,9 +624,11 @@ where
                                 }
                                 let key = MasterKey::Body(body);
                                 let prev = previous.get(&(node, key)).copied();
-                                let own = normals.as_ref().filter(|_| {
-                                    body == surface.facet_body[surface.facets_of_node(node)[0]]
-                                });
+                                // Self-contact: only facets facing the node, judged by its
+                                // area-weighted normal.
+                                let own = (body
+                                    == surface.facet_body[surface.facets_of_node(node)[0]])
+                                    .then(|| surface.node_normal(node, x));
                                 let choice = choose(
                                     &p,
                                     cands[i..j].iter().map(|c| match c.1 {
@@ -628,8 +636,7 @@ where
                                         Master::Obstacle(_) => unreachable!("facets only"),
                                     }),
                                     |f| surface.facets[f].map(|v| x[v]),
-                                    // Self-contact: only facets facing the node.
-                                    |n| own.is_none_or(|nn| nn[node].dot(n) < 0.0),
+                                    |n| own.is_none_or(|nn| nn.dot(n) < 0.0),
                                     prev,
                                     options.hysteresis,
                                 );
@@ -658,18 +665,6 @@ where
             .map(|(p, key, choice, _)| ((p.slave, *key), *choice))
             .collect();
         results.into_iter().filter(|r| r.3).map(|r| r.0).collect()
-    }
-
-    /// Area-weighted outward normals of the surface nodes at `x` (zero off the surface).
-    fn node_normals(&self, x: &[SVector<f64, D>]) -> Vec<SVector<f64, D>> {
-        let mut normals = vec![SVector::<f64, D>::zeros(); self.surface.node_count()];
-        for f in &self.surface.facets {
-            let (m, n) = <Dim<D>>::facet_measure_normal(&f.map(|v| x[v]));
-            for &v in f {
-                normals[v] += n * m;
-            }
-        }
-        normals
     }
 }
 
