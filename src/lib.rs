@@ -31,6 +31,10 @@
 //! ```
 
 #![warn(missing_docs)]
+// Numerical kernels index several arrays by the same node or dof index.
+#![allow(clippy::needless_range_loop)]
+// `!(x > 0.0)` is deliberate: it rejects NaN along with non-positive values.
+#![allow(clippy::neg_cmp_op_on_partial_ord)]
 
 pub mod assembly;
 pub mod contact;
@@ -38,6 +42,7 @@ pub mod dim;
 pub mod element;
 pub mod error;
 pub mod geometry;
+pub mod io;
 pub mod material;
 pub mod mesh;
 pub mod recording;
@@ -63,3 +68,12 @@ pub mod prelude {
     };
     pub use crate::time::{Beta, SpaceTimeScheme};
 }
+
+// The README's and the book's Rust examples run as doc tests (mdBook cannot link crates).
+#[cfg(doctest)]
+#[doc = include_str!("../README.md")]
+pub struct ReadmeDoctests;
+
+#[cfg(doctest)]
+#[doc = include_str!("../book/src/library.md")]
+pub struct BookLibraryDoctests;

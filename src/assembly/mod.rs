@@ -208,16 +208,27 @@ fn cell_matrices<const D: usize>(
         for a in 0..n {
             b[a] = <Dim<D>>::strain_operator(body.kinematics, shape[a], &grads[a], position[0]);
         }
+        // K is symmetric: compute the blocks (bb, a) with bb >= a and mirror them after.
         for a in 0..n {
-            let cb = body.tangent * b[a];
-            for bb in 0..n {
-                let kab = b[bb].transpose() * cb * dv; // (D x 6)(6 x D): block (bb, a)
+            let cb = body.tangent * b[a] * dv;
+            for bb in a..n {
+                let kab = b[bb].transpose() * cb; // (D x 6)(6 x D): block (bb, a)
                 for i in 0..D {
                     for j in 0..D {
                         K[bb * D + i][a * D + j] += kab[(i, j)];
                     }
                 }
                 M[a][bb] += body.density * shape[a] * shape[bb] * dv;
+            }
+        }
+    }
+    for a in 0..n {
+        for bb in a + 1..n {
+            M[bb][a] = M[a][bb];
+            for i in 0..D {
+                for j in 0..D {
+                    K[a * D + j][bb * D + i] = K[bb * D + i][a * D + j];
+                }
             }
         }
     }
@@ -426,4 +437,48 @@ pub fn von_mises(s: &Voigt) -> f64 {
     (0.5 * ((xx - yy).powi(2) + (yy - zz).powi(2) + (zz - xx).powi(2))
         + 3.0 * (yz * yz + xz * xz + xy * xy))
         .sqrt()
+}
+
+/// Internal forces `f_int = int B^T sigma(u)` integrated cell by cell from the stresses (the
+/// path nonlinear laws take; for linear laws it equals `K u`, which the tests check).
+pub fn internal_forces<const D: usize>(
+    table: &CellTable,
+    x: &[SVector<f64, D>],
+    bodies: &[BodyIntegration],
+    u: &[f64],
+) -> Vec<f64>
+where
+    Dim<D>: SpatialDim<D>,
+{
+    let mut f = vec![0.0; u.len()];
+    for seg in &table.segments {
+        let body = &bodies[seg.body];
+        for c in seg.cells.clone() {
+            let cell = table.cell(c, seg.kind);
+            for q in seg.kind.quadrature() {
+                let (shape, grads, position, det) = spatial_gradients::<D>(seg.kind, cell, x, q.xi);
+                let dv = q.weight * det * <Dim<D>>::measure_factor(body.kinematics, &position);
+                let mut strain = Voigt::zeros();
+                let mut b = [SMatrix::<f64, 6, D>::zeros(); MAX_NODES];
+                for (a, &node) in cell.iter().enumerate() {
+                    b[a] = <Dim<D>>::strain_operator(
+                        body.kinematics,
+                        shape[a],
+                        &grads[a],
+                        position[0],
+                    );
+                    strain +=
+                        b[a] * SVector::<f64, D>::from_column_slice(&u[node * D..node * D + D]);
+                }
+                let stress = body.tangent * strain;
+                for (a, &node) in cell.iter().enumerate() {
+                    let fa = b[a].transpose() * stress * dv;
+                    for k in 0..D {
+                        f[node * D + k] += fa[k];
+                    }
+                }
+            }
+        }
+    }
+    f
 }

@@ -1,1 +1,286 @@
-fn main() {}
+//! The `softway` command line: `run`, `check`, `resume` (see scene-format.md).
+
+use std::io::IsTerminal;
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+
+use clap::{Parser, Subcommand};
+use indicatif::{ProgressBar, ProgressStyle};
+use softway::dim::{Dim, SpatialDim};
+use softway::io::output::{self, Progress};
+use softway::io::scene::{self, LoadedScene};
+use softway::Error;
+
+#[derive(Parser)]
+#[command(
+    name = "softway",
+    version,
+    about = "Deformable bodies in dynamic contact (Bajer & Bohatier's soft way)"
+)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Run a scene and write history.csv, summary.json and VTK files.
+    Run {
+        /// The scene file (TOML).
+        scene: PathBuf,
+        /// Output folder [default: out/<scene file stem>].
+        #[arg(long)]
+        out: Option<PathBuf>,
+        /// Record every solver iteration to this Rerun file.
+        #[arg(long, value_name = "FILE.rrd")]
+        rerun: Option<PathBuf>,
+        /// Override a scene key: --set simulation.time_step=2e-4 (a TOML literal).
+        #[arg(long = "set", value_name = "KEY=VALUE")]
+        set: Vec<String>,
+        /// Print nothing but errors.
+        #[arg(long)]
+        quiet: bool,
+        /// Also write <out>/checkpoints/step_<N>.ckpt every N steps.
+        #[arg(long, value_name = "N")]
+        checkpoint_every: Option<usize>,
+    },
+    /// Validate a scene and its meshes, print a summary, run nothing.
+    Check {
+        /// The scene file (TOML).
+        scene: PathBuf,
+        /// Override a scene key (as for `run`).
+        #[arg(long = "set", value_name = "KEY=VALUE")]
+        set: Vec<String>,
+    },
+    /// Continue a run from a checkpoint.
+    Resume {
+        /// The checkpoint file.
+        checkpoint: PathBuf,
+        /// Output folder.
+        #[arg(long)]
+        out: Option<PathBuf>,
+    },
+}
+
+const INVALID: u8 = 2;
+const FAILED: u8 = 3;
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    match cli.command {
+        Command::Run {
+            scene,
+            out,
+            rerun,
+            set,
+            quiet,
+            checkpoint_every,
+        } => {
+            if rerun.is_some() {
+                return invalid(&Error::NotAvailable {
+                    feature: "--rerun".into(),
+                    detail: "the Rerun recording lands in a later version; run without it".into(),
+                });
+            }
+            if checkpoint_every.is_some() {
+                return invalid(&Error::NotAvailable {
+                    feature: "--checkpoint-every".into(),
+                    detail: "checkpoints land in a later version; run without it".into(),
+                });
+            }
+            let loaded = match scene::load(&scene, &set) {
+                Ok(l) => l,
+                Err(e) => return invalid(&e),
+            };
+            let stem = scene
+                .file_stem()
+                .and_then(|s| s.to_str())
+                .unwrap_or("scene")
+                .to_string();
+            let out = out.unwrap_or_else(|| Path::new("out").join(&stem));
+            match loaded.dimension() {
+                Ok(2) => run::<2>(&loaded, &out, &stem, quiet),
+                Ok(_) => run::<3>(&loaded, &out, &stem, quiet),
+                Err(e) => invalid(&e),
+            }
+        }
+        Command::Check { scene, set } => {
+            let loaded = match scene::load(&scene, &set) {
+                Ok(l) => l,
+                Err(e) => return invalid(&e),
+            };
+            match loaded.dimension() {
+                Ok(2) => check::<2>(&loaded),
+                Ok(_) => check::<3>(&loaded),
+                Err(e) => invalid(&e),
+            }
+        }
+        Command::Resume { .. } => invalid(&Error::NotAvailable {
+            feature: "softway resume".into(),
+            detail: "checkpoints land in a later version".into(),
+        }),
+    }
+}
+
+fn invalid(e: &Error) -> ExitCode {
+    eprintln!("error: {e}");
+    ExitCode::from(INVALID)
+}
+
+/// Like [`invalid`], for an error found while building or starting a scene: the message names
+/// the scene file even when the error comes from the library (a mesh, the simulation setup).
+fn invalid_in(scene: &Path, e: &Error) -> ExitCode {
+    let message = e.to_string();
+    let file = scene.display().to_string();
+    if matches!(e, Error::Scene { .. } | Error::SceneSyntax { .. }) || message.contains(&file) {
+        eprintln!("error: {message}");
+    } else {
+        eprintln!("error: {file}: {message}");
+    }
+    ExitCode::from(INVALID)
+}
+
+fn check<const D: usize>(loaded: &LoadedScene) -> ExitCode
+where
+    Dim<D>: SpatialDim<D>,
+{
+    let scene = match loaded.build::<D>() {
+        Ok(s) => s,
+        Err(e) => return invalid_in(&loaded.path, &e),
+    };
+    let sim = match scene.simulation() {
+        Ok(s) => s,
+        Err(e) => return invalid_in(&loaded.path, &e),
+    };
+    let s = &scene.settings;
+    println!("{}: valid", loaded.path.display());
+    println!(
+        "  {D}D {:?}, h = {} s, end_time = {} s ({} steps), alpha = {}, beta = {}",
+        s.kinematics,
+        s.time_step,
+        scene.end_time,
+        // As `run` counts them: the last step may be shortened, and a quotient that is an
+        // integer up to round-off (0.07 / 0.01 = 7.000000000000001) is not one more step.
+        (scene.end_time / s.time_step * (1.0 - 1e-9))
+            .ceil()
+            .max(0.0),
+        s.scheme.alpha,
+        s.scheme.beta
+    );
+    for (b, body) in scene.bodies.iter().enumerate() {
+        println!(
+            "  body `{}`: {} nodes, {} cells, mass {:.6e} kg, {} constraint(s)",
+            body.name,
+            body.mesh.node_count(),
+            body.mesh.cell_count(),
+            sim.body_mass(softway::simulation::BodyId(b)),
+            body.constraints.len()
+        );
+    }
+    for o in &scene.obstacles {
+        println!("  obstacle `{}`", o.name);
+    }
+    if sim.detector().is_some() {
+        println!(
+            "  contact: {}, penalty {} Pa/m, friction {:?}",
+            scene.contact.method.name(),
+            scene.contact.penalty,
+            scene.contact.friction
+        );
+    }
+    for p in &scene.probes {
+        println!(
+            "  probe `{}`: body {}, node {}",
+            p.name, scene.bodies[p.body].name, p.node
+        );
+    }
+    for w in sim.warnings() {
+        println!("  warning: {w}");
+    }
+    ExitCode::SUCCESS
+}
+
+fn run<const D: usize>(loaded: &LoadedScene, out: &Path, stem: &str, quiet: bool) -> ExitCode
+where
+    Dim<D>: SpatialDim<D>,
+{
+    let scene = match loaded.build::<D>() {
+        Ok(s) => s,
+        Err(e) => return invalid_in(&loaded.path, &e),
+    };
+    // scene-format.md: nothing but errors with --quiet or when stderr is not a terminal.
+    let show = !quiet && std::io::stderr().is_terminal();
+    let bar = if show {
+        let bar = ProgressBar::new(1000);
+        bar.set_style(
+            ProgressStyle::with_template("{bar:40} t = {msg}")
+                .unwrap_or_else(|_| ProgressStyle::default_bar()),
+        );
+        Some(bar)
+    } else {
+        None
+    };
+    let started = std::time::Instant::now();
+    let mut on_progress = |p: Progress| {
+        if let Some(bar) = &bar {
+            let frac = if p.end_time > 0.0 {
+                p.time / p.end_time
+            } else {
+                1.0
+            };
+            bar.set_position((frac * 1000.0) as u64);
+            let rate = p.steps as f64 / started.elapsed().as_secs_f64().max(1e-9);
+            bar.set_message(format!(
+                "{:.4e} / {:.4e} s, {:.1} steps/s, {} iterations in the last step",
+                p.time, p.end_time, rate, p.iterations
+            ));
+        }
+    };
+    let result = output::run::<D>(&scene, out, stem, &mut on_progress);
+    if let Some(bar) = bar {
+        bar.finish_and_clear();
+    }
+    let warnings = match &result {
+        Ok(summary) => &summary.warnings,
+        Err(failure) => &failure.summary.warnings,
+    };
+    if show {
+        for w in warnings {
+            eprintln!("warning: {w} (also in summary.json)");
+        }
+    }
+    match result {
+        Ok(summary) => {
+            if show {
+                eprintln!(
+                    "done: {} steps to t = {} s, {} iterations, energy drift {:.3e}, {:.2} s; outputs in {}",
+                    summary.steps,
+                    summary.final_time,
+                    summary.total_iterations,
+                    summary.energy_drift,
+                    summary.wall_seconds,
+                    out.display()
+                );
+            }
+            ExitCode::SUCCESS
+        }
+        Err(failure) => {
+            let code = match failure.error {
+                Error::NotConverged { .. }
+                | Error::Unstable { .. }
+                | Error::Factorization { .. }
+                | Error::Output { .. } => FAILED,
+                _ => return invalid_in(&loaded.path, &failure.error),
+            };
+            eprintln!("error: {}", failure.error);
+            if code == FAILED {
+                eprintln!(
+                    "history up to step {} written to {}",
+                    failure.summary.steps,
+                    out.display()
+                );
+            }
+            ExitCode::from(code)
+        }
+    }
+}

@@ -50,6 +50,9 @@ pub struct Obstacle<const D: usize> {
     pub velocity: SVector<f64, D>,
     /// Displacement of the obstacle since t = 0 [m] (advanced every step).
     pub translation: SVector<f64, D>,
+    /// Friction law against this obstacle; `None` uses the contact settings' law.
+    #[serde(default)]
+    pub friction: Option<crate::contact::FrictionLaw>,
 }
 
 impl<const D: usize> Obstacle<D> {
@@ -60,7 +63,14 @@ impl<const D: usize> Obstacle<D> {
             shape,
             velocity: SVector::zeros(),
             translation: SVector::zeros(),
+            friction: None,
         }
+    }
+
+    /// Sets the friction law against this obstacle.
+    pub fn with_friction(mut self, law: crate::contact::FrictionLaw) -> Self {
+        self.friction = Some(law);
+        self
     }
 
     /// Sets the velocity [m/s].

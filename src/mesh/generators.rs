@@ -19,7 +19,7 @@ fn invalid(name: &str, found: impl std::fmt::Display, expected: &str) -> Error {
 }
 
 fn check_cells<const N: usize>(cells: [usize; N]) -> Result<()> {
-    if cells.iter().any(|&c| c == 0) {
+    if cells.contains(&0) {
         return Err(invalid(
             "cells",
             format!("{cells:?}"),

@@ -13,6 +13,8 @@ use crate::error::{Error, Result};
 pub struct SparseCholesky {
     symbolic: SymbolicLlt<usize>,
     factor: Option<Llt<usize, f64>>,
+    /// The pattern the symbolic analysis was made for (column pointers, row indices).
+    pattern: (Vec<usize>, Vec<usize>),
 }
 
 impl std::fmt::Debug for SparseCholesky {
@@ -32,10 +34,26 @@ impl SparseCholesky {
                 message: format!("{e:?}"),
             }
         })?;
+        let pattern = (
+            matrix.symbolic().col_ptr().to_vec(),
+            matrix.symbolic().row_idx().to_vec(),
+        );
         Ok(SparseCholesky {
             symbolic,
             factor: None,
+            pattern,
         })
+    }
+
+    /// Like [`SparseCholesky::factor`], re-analysing first when `matrix` has another pattern
+    /// than the analysed one (contact between bodies adds couplings).
+    pub fn factor_any(&mut self, matrix: &SparseColMat<usize, f64>, step: usize) -> Result<()> {
+        let same = self.pattern.0 == matrix.symbolic().col_ptr()
+            && self.pattern.1 == matrix.symbolic().row_idx();
+        if !same {
+            *self = SparseCholesky::analyse(matrix)?;
+        }
+        self.factor(matrix, step)
     }
 
     /// Numeric factorisation of a matrix with the analysed pattern; `step` names the step in

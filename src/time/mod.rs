@@ -162,7 +162,7 @@ mod tests {
 
     #[test]
     fn energy_beta_gives_unit_determinant() {
-        for alpha in [0.5, 0.6, 0.7071, 0.75, 0.9, 1.0] {
+        for alpha in [0.5, 0.6, std::f64::consts::FRAC_1_SQRT_2, 0.75, 0.9, 1.0] {
             let s = SpaceTimeScheme::new(alpha, Beta::Energy).unwrap();
             for kappa in kappas() {
                 let det = s.transfer_matrix(kappa).determinant();

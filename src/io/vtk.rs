@@ -1,0 +1,343 @@
+//! VTK output: XML unstructured grids (`.vtu`) and ParaView collections (`.pvd`).
+//!
+//! `.vtu` files are produced by the `vtkio` crate (XML, `Float64` data, base64 "binary"
+//! inline arrays with `UInt64` headers, little-endian); meshio, pyvista/VTK and ParaView read
+//! them. `.pvd` files are a few lines of XML written here.
+//!
+//! Both writers write `<path>.tmp` and rename it over `<path>`, so a viewer polling the
+//! output never sees a half-written file.
+//!
+//! Node order: for the linear cells here, Gmsh and VTK number nodes the same way (lines
+//! 0-1; triangles and quads counter-clockwise; tetrahedra with node 3 on the positive side
+//! of face 0-1-2; hexahedra with the bottom face 0-3 counter-clockwise seen from the top
+//! face 4-7, node 4 above node 0). Connectivity is written unchanged.
+
+use std::ffi::OsString;
+use std::fs::File;
+use std::io::{self, BufWriter, Write};
+use std::path::{Path, PathBuf};
+
+use vtkio::model::{
+    Attribute, Attributes, ByteOrder, CellType, Cells, DataSet, UnstructuredGridPiece, Version,
+    VertexNumbers, Vtk,
+};
+
+/// Linear cell kinds that can be written.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum VtkCellKind {
+    /// 2-node line (`VTK_LINE`, 3).
+    Line2,
+    /// 3-node triangle (`VTK_TRIANGLE`, 5).
+    Tri3,
+    /// 4-node quadrilateral (`VTK_QUAD`, 9).
+    Quad4,
+    /// 4-node tetrahedron (`VTK_TETRA`, 10).
+    Tet4,
+    /// 8-node hexahedron (`VTK_HEXAHEDRON`, 12).
+    Hex8,
+}
+
+impl VtkCellKind {
+    /// The VTK cell type id.
+    pub fn vtk_type(self) -> u8 {
+        match self {
+            Self::Line2 => 3,
+            Self::Tri3 => 5,
+            Self::Quad4 => 9,
+            Self::Tet4 => 10,
+            Self::Hex8 => 12,
+        }
+    }
+
+    /// Number of nodes of a cell of this kind.
+    pub fn node_count(self) -> usize {
+        match self {
+            Self::Line2 => 2,
+            Self::Tri3 => 3,
+            Self::Quad4 | Self::Tet4 => 4,
+            Self::Hex8 => 8,
+        }
+    }
+
+    fn cell_type(self) -> CellType {
+        match self {
+            Self::Line2 => CellType::Line,
+            Self::Tri3 => CellType::Triangle,
+            Self::Quad4 => CellType::Quad,
+            Self::Tet4 => CellType::Tetra,
+            Self::Hex8 => CellType::Hexahedron,
+        }
+    }
+}
+
+/// A named field on points or cells.
+#[derive(Debug, Clone, Copy)]
+pub struct VtkField<'a> {
+    /// Array name shown by viewers; must be non-empty and unique among the piece's point
+    /// (or cell) fields.
+    pub name: &'a str,
+    /// Components per entry (1 for scalars, 3 for vectors, 9 for tensors, ...).
+    pub components: usize,
+    /// Values, entry-major: `values.len() == n * components`, where `n` is the number of
+    /// points (point data) or cells (cell data).
+    pub values: &'a [f64],
+}
+
+/// One unstructured grid: points, cells, and fields on them.
+///
+/// Cells are `(kind, node indices)` pairs; the indices are 0-based into `points`, in VTK
+/// order (which equals Gmsh order for these kinds). Cells of different kinds may be mixed;
+/// cell data follows the order of `cells`.
+#[derive(Debug, Clone, Copy)]
+pub struct VtkPiece<'a> {
+    /// Point coordinates.
+    pub points: &'a [[f64; 3]],
+    /// Cells as `(kind, node indices)`.
+    pub cells: &'a [(VtkCellKind, &'a [usize])],
+    /// Fields with one entry per point.
+    pub point_data: &'a [VtkField<'a>],
+    /// Fields with one entry per cell.
+    pub cell_data: &'a [VtkField<'a>],
+}
+
+fn invalid(msg: String) -> io::Error {
+    io::Error::new(io::ErrorKind::InvalidInput, msg)
+}
+
+/// Check fields against the number of entries they must have.
+fn check_fields(fields: &[VtkField<'_>], n: usize, what: &str) -> io::Result<()> {
+    for (i, f) in fields.iter().enumerate() {
+        if f.name.is_empty() {
+            return Err(invalid(format!("{what} field {i} has an empty name")));
+        }
+        if fields[..i].iter().any(|g| g.name == f.name) {
+            return Err(invalid(format!(
+                "{what} field name {:?} is used twice",
+                f.name
+            )));
+        }
+        if f.components == 0 || u32::try_from(f.components).is_err() {
+            return Err(invalid(format!(
+                "{what} field {:?} has {} components, expected 1 to {}",
+                f.name,
+                f.components,
+                u32::MAX
+            )));
+        }
+        let expected = n.checked_mul(f.components);
+        if expected != Some(f.values.len()) {
+            return Err(invalid(format!(
+                "{what} field {:?} has {} values, expected {n} {what}s x {} components",
+                f.name,
+                f.values.len(),
+                f.components
+            )));
+        }
+    }
+    Ok(())
+}
+
+fn attributes(fields: &[VtkField<'_>]) -> Vec<Attribute> {
+    fields
+        .iter()
+        .map(|f| {
+            // check_fields keeps `components` within u32 (VTK's NumberOfComponents type).
+            let comps = u32::try_from(f.components).unwrap_or(u32::MAX);
+            Attribute::generic(f.name, comps).with_data(f.values.to_vec())
+        })
+        .collect()
+}
+
+/// Build the vtkio model after checking the piece for consistency.
+fn to_model(piece: &VtkPiece<'_>) -> io::Result<Vtk> {
+    let n_points = piece.points.len();
+    let mut connectivity = Vec::new();
+    let mut offsets = Vec::with_capacity(piece.cells.len());
+    let mut types = Vec::with_capacity(piece.cells.len());
+    for (c, (kind, nodes)) in piece.cells.iter().enumerate() {
+        if nodes.len() != kind.node_count() {
+            return Err(invalid(format!(
+                "cell {c} ({kind:?}) has {} nodes, expected {}",
+                nodes.len(),
+                kind.node_count()
+            )));
+        }
+        if let Some(&bad) = nodes.iter().find(|&&i| i >= n_points) {
+            return Err(invalid(format!(
+                "cell {c} ({kind:?}) refers to point {bad}, expected an index below {n_points}"
+            )));
+        }
+        connectivity.extend(nodes.iter().map(|&i| i as u64));
+        offsets.push(connectivity.len() as u64);
+        types.push(kind.cell_type());
+    }
+    check_fields(piece.point_data, n_points, "point")?;
+    check_fields(piece.cell_data, piece.cells.len(), "cell")?;
+
+    let points: Vec<f64> = piece.points.iter().flatten().copied().collect();
+    Ok(Vtk {
+        // XML format version 1.0: needed for the UInt64 headers vtkio writes.
+        version: Version::new((1, 0)),
+        byte_order: ByteOrder::LittleEndian,
+        title: String::new(),
+        file_path: None,
+        data: DataSet::inline(UnstructuredGridPiece {
+            points: points.into(),
+            cells: Cells {
+                cell_verts: VertexNumbers::XML {
+                    connectivity,
+                    offsets,
+                },
+                types,
+            },
+            data: Attributes {
+                point: attributes(piece.point_data),
+                cell: attributes(piece.cell_data),
+            },
+        }),
+    })
+}
+
+/// `<path>.tmp`, next to `path` so that the rename stays on one file system.
+fn tmp_path(path: &Path) -> PathBuf {
+    let mut s: OsString = path.as_os_str().to_owned();
+    s.push(".tmp");
+    PathBuf::from(s)
+}
+
+/// Write through `f` into `<path>.tmp`, then rename it to `path`.
+fn write_atomic(
+    path: &Path,
+    f: impl FnOnce(&mut BufWriter<File>) -> io::Result<()>,
+) -> io::Result<()> {
+    let tmp = tmp_path(path);
+    let result = (|| {
+        let mut w = BufWriter::new(File::create(&tmp)?);
+        f(&mut w)?;
+        w.flush()?;
+        // No fsync: the rename already keeps readers from seeing partial files, and
+        // syncing every frame of a simulation would cost more than it protects.
+        drop(w);
+        std::fs::rename(&tmp, path)
+    })();
+    if result.is_err() {
+        // Best effort: do not leave a stale temporary behind.
+        let _ = std::fs::remove_file(&tmp);
+    }
+    result
+}
+
+/// Write `piece` as a VTK XML unstructured grid (`.vtu`) at `path`.
+///
+/// The piece is checked first (node counts per cell kind, point indices in range, field
+/// lengths, unique non-empty names); problems give `ErrorKind::InvalidInput` and no file.
+/// The file appears atomically (written to `<path>.tmp`, then renamed).
+pub fn write_vtu(path: &Path, piece: &VtkPiece) -> io::Result<()> {
+    let vtk = to_model(piece)?;
+    write_atomic(path, |w| {
+        vtk.write_xml(w).map_err(|e| match e {
+            vtkio::Error::IO(e) => e,
+            other => io::Error::other(format!("vtkio could not write the .vtu: {other}")),
+        })
+    })
+}
+
+/// Escape text for an XML attribute value.
+fn xml_escape(s: &str) -> String {
+    let mut out = String::with_capacity(s.len());
+    for c in s.chars() {
+        match c {
+            '&' => out.push_str("&amp;"),
+            '<' => out.push_str("&lt;"),
+            '>' => out.push_str("&gt;"),
+            '"' => out.push_str("&quot;"),
+            '\'' => out.push_str("&apos;"),
+            c => out.push(c),
+        }
+    }
+    out
+}
+
+/// Write a ParaView collection (`.pvd`) listing `(time, file)` entries, for animations.
+///
+/// File paths are written as given; ParaView resolves them relative to the `.pvd` file.
+/// Times must be finite (`ErrorKind::InvalidInput` otherwise). Written atomically.
+pub fn write_pvd(path: &Path, entries: &[(f64, String)]) -> io::Result<()> {
+    let parts: Vec<(f64, usize, String)> =
+        entries.iter().map(|(t, f)| (*t, 0, f.clone())).collect();
+    write_pvd_parts(path, &parts)
+}
+
+/// Like [`write_pvd`], with a part number per entry (one part per body, so that ParaView shows
+/// every body at every time).
+pub fn write_pvd_parts(path: &Path, entries: &[(f64, usize, String)]) -> io::Result<()> {
+    if let Some((t, _, f)) = entries.iter().find(|(t, _, _)| !t.is_finite()) {
+        return Err(invalid(format!("time {t} of {f:?} is not finite")));
+    }
+    write_atomic(path, |w| {
+        writeln!(w, "<?xml version=\"1.0\"?>")?;
+        writeln!(
+            w,
+            "<VTKFile type=\"Collection\" version=\"0.1\" byte_order=\"LittleEndian\">"
+        )?;
+        writeln!(w, "  <Collection>")?;
+        for (t, part, file) in entries {
+            // `{:?}` prints the shortest text that reads back as the same f64.
+            writeln!(
+                w,
+                "    <DataSet timestep=\"{t:?}\" group=\"\" part=\"{part}\" file=\"{}\"/>",
+                xml_escape(file)
+            )?;
+        }
+        writeln!(w, "  </Collection>")?;
+        writeln!(w, "</VTKFile>")
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn escape() {
+        assert_eq!(xml_escape("a<b>&\"c'"), "a&lt;b&gt;&amp;&quot;c&apos;");
+    }
+
+    #[test]
+    fn tmp_is_sibling() {
+        assert_eq!(
+            tmp_path(Path::new("out/a.vtu")),
+            PathBuf::from("out/a.vtu.tmp")
+        );
+    }
+
+    #[test]
+    fn rejects_bad_pieces() {
+        let points = [[0.0; 3]; 3];
+        let tri: &[usize] = &[0, 1, 2];
+        let bad: &[usize] = &[0, 1, 3];
+        let short: &[usize] = &[0, 1];
+        let vals = [1.0, 2.0];
+        for (cells, point_data) in [
+            (vec![(VtkCellKind::Tri3, bad)], vec![]),
+            (vec![(VtkCellKind::Tri3, short)], vec![]),
+            (
+                vec![(VtkCellKind::Tri3, tri)],
+                vec![VtkField {
+                    name: "p",
+                    components: 1,
+                    values: &vals,
+                }],
+            ),
+        ] {
+            let piece = VtkPiece {
+                points: &points,
+                cells: &cells,
+                point_data: &point_data,
+                cell_data: &[],
+            };
+            let err = to_model(&piece).expect_err("invalid");
+            assert_eq!(err.kind(), io::ErrorKind::InvalidInput);
+        }
+    }
+}

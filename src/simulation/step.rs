@@ -1,0 +1,1061 @@
+//! The space-time velocity step: Newton on the momentum balance at `t_alpha`, with the contact
+//! methods inside it, step cutting, the state update and the energy account.
+
+use std::collections::{BTreeMap, BTreeSet, HashSet};
+
+use faer::sparse::{SparseColMat, Triplet};
+use nalgebra::{SMatrix, SVector};
+
+use super::{end_positions, invalid, BodyId, MasterId, Simulation, StepReport};
+use crate::assembly;
+use crate::contact::resolution::{facet_gap_hessian, plane_weights};
+use crate::contact::{
+    ContactMethod, ContactPair, Feature, FrictionLaw, Master, Obstacle, ObstacleShape,
+};
+use crate::dim::{Dim, SpatialDim};
+use crate::error::{Error, Result};
+use crate::recording::{ContactRecord, IterationInfo, NullRecorder, Recorder};
+use crate::solver::SparseCholesky;
+
+/// Deepest step cut: a step is halved at most this many times.
+const MAX_CUTS: usize = 4;
+
+/// The factored contact-free iteration matrix for one step size.
+pub(super) struct IterationSystem {
+    time_step: f64,
+    matrix: SparseColMat<usize, f64>,
+    diagonal: Vec<f64>,
+    cholesky: SparseCholesky,
+}
+
+/// One slave point's contribution in an iteration.
+struct PairTerms<const D: usize> {
+    key: (usize, MasterId),
+    normal: SVector<f64, D>,
+    gap: f64,
+    normal_force: f64,
+    friction: SVector<f64, D>,
+    slip: SVector<f64, D>,
+    master_point: SVector<f64, D>,
+    obstacle: Option<usize>,
+    /// Implicit projection: the relative normal end velocity [m/s].
+    normal_velocity: f64,
+}
+
+/// Everything contact adds to one iteration.
+#[derive(Default)]
+struct ContactTerms<const D: usize> {
+    forces: Vec<f64>,
+    entries: Vec<(usize, usize, f64)>,
+    pairs: Vec<PairTerms<D>>,
+    energy: f64,
+    dissipation_rate: f64,
+}
+
+fn block_entries<const D: usize>(
+    entries: &mut Vec<(usize, usize, f64)>,
+    a: usize,
+    b: usize,
+    block: &SMatrix<f64, D, D>,
+) {
+    for i in 0..D {
+        for j in 0..D {
+            let (r, c) = (a * D + i, b * D + j);
+            if r >= c && block[(i, j)] != 0.0 {
+                entries.push((r, c, block[(i, j)]));
+            }
+        }
+    }
+}
+
+impl<const D: usize> Simulation<D>
+where
+    Dim<D>: SpatialDim<D>,
+{
+    /// One step of the configured size.
+    pub fn step(&mut self) -> Result<StepReport> {
+        let h = self.settings.time_step;
+        self.advance(h, &mut NullRecorder)
+    }
+
+    /// One step of the configured size, observed by a recorder.
+    pub fn step_with(&mut self, recorder: &mut dyn Recorder<D>) -> Result<StepReport> {
+        let h = self.settings.time_step;
+        self.advance(h, recorder)
+    }
+
+    /// One step of size `h` [s] observed by `recorder`. A step whose Newton or contact
+    /// iteration does not converge (or whose contact set cycles) is cut in halves, up to four
+    /// times; on error the state is left as it was at the start of the step.
+    pub fn advance(&mut self, h: f64, recorder: &mut dyn Recorder<D>) -> Result<StepReport> {
+        if !(h > 0.0 && h.is_finite()) {
+            return Err(invalid("time_step", h, "a finite value > 0 [s]"));
+        }
+        let saved = self.state.clone();
+        match self.advance_cut(h, recorder, 0, true) {
+            Ok(r) => Ok(r),
+            Err(e) => {
+                self.state = saved;
+                Err(e)
+            }
+        }
+    }
+
+    fn advance_cut(
+        &mut self,
+        h: f64,
+        recorder: &mut dyn Recorder<D>,
+        depth: usize,
+        last_piece: bool,
+    ) -> Result<StepReport> {
+        match self.advance_once(h, recorder, last_piece) {
+            Err(Error::NotConverged { .. }) if depth < MAX_CUTS => {
+                recorder.log(
+                    self,
+                    &format!(
+                        "step {} at t = {:.6e} s: no convergence with h = {h:.3e} s, cutting it in two",
+                        self.state.step + 1,
+                        self.state.time
+                    ),
+                );
+                let first = self.advance_cut(0.5 * h, recorder, depth + 1, false)?;
+                let mut second = self.advance_cut(0.5 * h, recorder, depth + 1, last_piece)?;
+                second.iterations += first.iterations;
+                second.time_step = h;
+                for (a, b) in second.reactions.iter_mut().zip(&first.reactions) {
+                    for (x, y) in a.iter_mut().zip(b) {
+                        *x = 0.5 * (*x + y);
+                    }
+                }
+                for (a, b) in second.contact_forces.iter_mut().zip(&first.contact_forces) {
+                    for (x, y) in a.iter_mut().zip(b) {
+                        *x = 0.5 * (*x + y);
+                    }
+                }
+                Ok(second)
+            }
+            other => other,
+        }
+    }
+
+    fn ensure_system(&mut self, h: f64) -> Result<()> {
+        if self.system.as_ref().is_some_and(|s| s.time_step == h) {
+            return Ok(());
+        }
+        let (_, d1) = self.settings.scheme.displacement_weights();
+        let matrix = self.iteration_matrix(h, d1);
+        let mut cholesky = match self.system.take() {
+            Some(s) => s.cholesky,
+            None => SparseCholesky::analyse(&matrix)?,
+        };
+        cholesky.factor(&matrix, self.state.step + 1)?;
+        let mut diagonal = vec![0.0; matrix.nrows()];
+        let (cp, ri, v) = (
+            matrix.symbolic().col_ptr(),
+            matrix.symbolic().row_idx(),
+            matrix.val(),
+        );
+        for j in 0..matrix.ncols() {
+            for k in cp[j]..cp[j + 1] {
+                if ri[k] == j {
+                    diagonal[j] = v[k];
+                }
+            }
+        }
+        self.system = Some(IterationSystem {
+            time_step: h,
+            matrix,
+            diagonal,
+            cholesky,
+        });
+        Ok(())
+    }
+
+    /// `M/h + (alpha^2 h / 2) K` with prescribed rows and columns replaced by the identity
+    /// (scaled to the mean diagonal, for conditioning).
+    fn iteration_matrix(&self, h: f64, d1: f64) -> SparseColMat<usize, f64> {
+        let mut a = self.matrices.mass.clone();
+        let (m_vals, k_vals) = (self.matrices.mass.val(), self.matrices.stiffness.val());
+        let col_ptr = a.symbolic().col_ptr().to_vec();
+        let row_idx = a.symbolic().row_idx().to_vec();
+        let vals = a.val_mut();
+        for i in 0..vals.len() {
+            vals[i] = m_vals[i] / h + d1 * h * k_vals[i];
+        }
+        let mut diag_sum = 0.0;
+        for j in 0..col_ptr.len() - 1 {
+            for k in col_ptr[j]..col_ptr[j + 1] {
+                if row_idx[k] == j {
+                    diag_sum += vals[k];
+                }
+            }
+        }
+        let scale = diag_sum / (col_ptr.len() - 1).max(1) as f64;
+        for j in 0..col_ptr.len() - 1 {
+            for k in col_ptr[j]..col_ptr[j + 1] {
+                let i = row_idx[k];
+                if self.prescribed[i].is_some() || self.prescribed[j].is_some() {
+                    vals[k] = if i == j { scale } else { 0.0 };
+                }
+            }
+        }
+        a
+    }
+
+    /// The obstacles at the given translations (D per obstacle).
+    fn obstacles_at(&self, translations: &[f64]) -> Vec<Obstacle<D>> {
+        self.obstacles
+            .iter()
+            .enumerate()
+            .map(|(k, o)| Obstacle {
+                translation: SVector::from_column_slice(&translations[k * D..k * D + D]),
+                ..o.clone()
+            })
+            .collect()
+    }
+
+    fn obstacle_velocity(&self, k: usize) -> SVector<f64, D> {
+        SVector::from_column_slice(&self.state.obstacle_velocities[k * D..k * D + D])
+    }
+
+    /// Each boundary node's share of the contact surface [m^2] at positions `x` (length x unit
+    /// thickness in plane kinematics, `2 pi r` x length in axisymmetric ones).
+    fn tributary_areas(&self, x: &[SVector<f64, D>]) -> Vec<f64> {
+        let mut area = vec![0.0; x.len()];
+        let axisymmetric = self.settings.kinematics == crate::dim::Kinematics::Axisymmetric;
+        for face in &self.boundary_faces {
+            if D == 2 {
+                let (a, b) = (face[0], face[1]);
+                let length = (x[b] - x[a]).norm();
+                if axisymmetric {
+                    let (ra, rb) = (x[a][0].max(0.0), x[b][0].max(0.0));
+                    let tau = 2.0 * std::f64::consts::PI * length / 6.0;
+                    area[a] += tau * (2.0 * ra + rb);
+                    area[b] += tau * (ra + 2.0 * rb);
+                } else {
+                    area[a] += 0.5 * length;
+                    area[b] += 0.5 * length;
+                }
+            } else {
+                let tri = |p: usize, q: usize, r: usize| {
+                    let v = [x[p], x[q], x[r]].map(|v| nalgebra::Vector3::new(v[0], v[1], v[2]));
+                    0.5 * (v[1] - v[0]).cross(&(v[2] - v[0])).norm()
+                };
+                let total = if face.len() == 4 {
+                    tri(face[0], face[1], face[2]) + tri(face[0], face[2], face[3])
+                } else {
+                    tri(face[0], face[1], face[2])
+                };
+                for &n in face {
+                    area[n] += total / face.len() as f64;
+                }
+            }
+        }
+        area
+    }
+
+    /// Hessian of the distance to an analytic obstacle at a slave point (zero on faces).
+    fn obstacle_gap_hessian(
+        &self,
+        obstacle: &Obstacle<D>,
+        pair: &ContactPair<D>,
+        x: &SVector<f64, D>,
+    ) -> SMatrix<f64, D, D> {
+        let n = pair.normal;
+        let projector = SMatrix::<f64, D, D>::identity() - n * n.transpose();
+        let distance = (x - pair.point).norm();
+        match (&obstacle.shape, pair.feature) {
+            (ObstacleShape::Ball { center, .. }, _) => {
+                let d = (x - center - obstacle.translation).norm();
+                if d > 0.0 {
+                    projector / d
+                } else {
+                    SMatrix::zeros()
+                }
+            }
+            (ObstacleShape::Box { .. }, Feature::Vertex(_)) if distance > 0.0 => {
+                projector / distance
+            }
+            (ObstacleShape::Box { .. }, Feature::Edge(k)) if distance > 0.0 && D == 3 => {
+                let mut e = SVector::<f64, D>::zeros();
+                e[k] = 1.0;
+                (projector - e * e.transpose()) / distance
+            }
+            (ObstacleShape::Facets { .. }, Feature::Vertex(_)) if distance > 0.0 => {
+                projector / distance
+            }
+            // Faces are flat; the edges of a triangle-mesh obstacle are not curved in their own
+            // direction and their small transverse term is dropped (named in the book).
+            _ => SMatrix::zeros(),
+        }
+    }
+
+    /// Forces, tangent entries and records of every detected pair.
+    #[allow(clippy::too_many_arguments)]
+    fn contact_terms(
+        &self,
+        pairs: &[ContactPair<D>],
+        obstacles_t1: &[Obstacle<D>],
+        x_gap: &[SVector<f64, D>],
+        v0: &[f64],
+        v1: &[f64],
+        h: f64,
+        areas: &[f64],
+        multipliers: &BTreeMap<(usize, MasterId), f64>,
+        active: &BTreeSet<(usize, MasterId)>,
+        diagonal: &[f64],
+    ) -> ContactTerms<D> {
+        let method = self.contact.method;
+        let zeta = self.contact.penalty;
+        let ndof = v1.len();
+        let mut terms = ContactTerms {
+            forces: vec![0.0; ndof],
+            ..Default::default()
+        };
+        let node_v =
+            |v: &[f64], n: usize| SVector::<f64, D>::from_column_slice(&v[n * D..n * D + D]);
+        let detector = match &self.detector {
+            Some(d) => d,
+            None => return terms,
+        };
+        let surface = detector.surface();
+        for pair in pairs {
+            let s = pair.slave;
+            let area = areas[s];
+            // Master nodes with their weights, the normal and the gap.
+            let (key, nodes, normal, gap, master_velocity, obstacle, master_point) =
+                match pair.master {
+                    Master::Obstacle(k) => (
+                        (s, MasterId::Obstacle(k)),
+                        vec![(s, 1.0)],
+                        pair.normal,
+                        pair.gap,
+                        self.obstacle_velocity(k),
+                        Some(k),
+                        pair.point,
+                    ),
+                    Master::Facet(f) => {
+                        let facet = surface.facets()[f];
+                        let y: [SVector<f64, D>; D] = std::array::from_fn(|i| x_gap[facet[i]]);
+                        let (measure, n) = <Dim<D>>::facet_measure_normal(&y);
+                        if measure <= 0.0 {
+                            continue;
+                        }
+                        let w = plane_weights::<D>(&x_gap[s], &y, &n);
+                        let g = (x_gap[s] - y[0]).dot(&n);
+                        let mut nodes = vec![(s, 1.0)];
+                        let mut q = SVector::<f64, D>::zeros();
+                        for i in 0..D {
+                            nodes.push((facet[i], -w[i]));
+                            q += y[i] * w[i];
+                        }
+                        (
+                            (s, MasterId::Body(surface.facet_body()[f])),
+                            nodes,
+                            n,
+                            g,
+                            SVector::zeros(),
+                            None,
+                            q,
+                        )
+                    }
+                };
+            let relative = |v: &[f64]| -> SVector<f64, D> {
+                let mut r = -master_velocity;
+                for &(n, c) in &nodes {
+                    r += node_v(v, n) * c;
+                }
+                r
+            };
+            let (r0, r1) = (relative(v0), relative(v1));
+            let projector = SMatrix::<f64, D, D>::identity() - normal * normal.transpose();
+            let slip = projector * (r0 + r1) * 0.5;
+            let normal_velocity = normal.dot(&r1);
+
+            // Normal force and the stiffness of its law.
+            let (normal_force, normal_stiffness, pressure) = match method {
+                ContactMethod::SoftWay | ContactMethod::AugmentedLagrangian => {
+                    let lambda = if method == ContactMethod::AugmentedLagrangian {
+                        multipliers.get(&key).copied().unwrap_or(0.0)
+                    } else {
+                        0.0
+                    };
+                    let p = lambda - zeta * gap;
+                    if p > 0.0 {
+                        (p * area, 0.5 * h * zeta * area, p)
+                    } else {
+                        (0.0, 0.0, 0.0)
+                    }
+                }
+                ContactMethod::ImplicitProjection => {
+                    if active.contains(&key) {
+                        let rho = 1e4 * (0..D).map(|k| diagonal[s * D + k]).fold(0.0, f64::max);
+                        let lambda = multipliers.get(&key).copied().unwrap_or(0.0);
+                        (lambda - rho * normal_velocity, rho, 0.0)
+                    } else {
+                        (0.0, 0.0, 0.0)
+                    }
+                }
+                ContactMethod::ExplicitProjection => (0.0, 0.0, 0.0),
+            };
+            let law = obstacle
+                .and_then(|k| self.obstacles[k].friction)
+                .unwrap_or(self.contact.friction);
+            let (friction, friction_tangent) = if normal_force > 0.0 {
+                law.force(normal_force, area, &slip, &normal)
+            } else {
+                (SVector::zeros(), SMatrix::zeros())
+            };
+            let force = normal * normal_force + friction;
+            for &(n, c) in &nodes {
+                for k in 0..D {
+                    terms.forces[n * D + k] += c * force[k];
+                }
+            }
+            // Tangent: d(-force)/dv1 on every pair of involved nodes.
+            if normal_stiffness > 0.0 || law != FrictionLaw::Frictionless {
+                let nn = normal * normal.transpose();
+                let geometric: Option<Vec<Vec<f64>>> = if pressure > 0.0 {
+                    match pair.master {
+                        Master::Facet(f) => {
+                            let facet = surface.facets()[f];
+                            let y: [SVector<f64, D>; D] = std::array::from_fn(|i| x_gap[facet[i]]);
+                            Some(facet_gap_hessian::<D>(&x_gap[s], &y))
+                        }
+                        Master::Obstacle(k) => {
+                            let hs = self.obstacle_gap_hessian(&obstacles_t1[k], pair, &x_gap[s]);
+                            let mut m = vec![vec![0.0; D]; D];
+                            for i in 0..D {
+                                for j in 0..D {
+                                    m[i][j] = hs[(i, j)];
+                                }
+                            }
+                            Some(m)
+                        }
+                    }
+                } else {
+                    None
+                };
+                for (a, &(na, ca)) in nodes.iter().enumerate() {
+                    for (b, &(nb, cb)) in nodes.iter().enumerate() {
+                        let mut block =
+                            nn * (normal_stiffness * ca * cb) - friction_tangent * (0.5 * ca * cb);
+                        if let Some(hess) = &geometric {
+                            for i in 0..D {
+                                for j in 0..D {
+                                    block[(i, j)] -=
+                                        0.5 * h * pressure * area * hess[a * D + i][b * D + j];
+                                }
+                            }
+                        }
+                        block_entries(&mut terms.entries, na, nb, &block);
+                    }
+                }
+            }
+            if matches!(
+                method,
+                ContactMethod::SoftWay | ContactMethod::AugmentedLagrangian
+            ) && gap < 0.0
+            {
+                terms.energy += 0.5 * zeta * area * gap * gap;
+            }
+            terms.dissipation_rate += -friction.dot(&slip);
+            terms.pairs.push(PairTerms {
+                key,
+                normal,
+                gap,
+                normal_force,
+                friction,
+                slip,
+                master_point,
+                obstacle,
+                normal_velocity,
+            });
+        }
+        terms
+    }
+
+    /// The iteration matrix with the contact entries added; re-analysed when the contact adds
+    /// couplings that are not in the contact-free pattern.
+    fn contact_matrix(&self, entries: &[(usize, usize, f64)]) -> Result<SparseColMat<usize, f64>> {
+        let system = self.system.as_ref().expect("ensure_system ran");
+        let base = &system.matrix;
+        let mut matrix = base.clone();
+        let (cp, ri) = (
+            base.symbolic().col_ptr().to_vec(),
+            base.symbolic().row_idx().to_vec(),
+        );
+        let vals = matrix.val_mut();
+        let mut missing = Vec::new();
+        for &(r, c, v) in entries {
+            if self.prescribed[r].is_some() || self.prescribed[c].is_some() {
+                continue;
+            }
+            match ri[cp[c]..cp[c + 1]].binary_search(&r) {
+                Ok(k) => vals[cp[c] + k] += v,
+                Err(_) => missing.push(Triplet::new(r, c, v)),
+            }
+        }
+        if missing.is_empty() {
+            return Ok(matrix);
+        }
+        let mut triplets = missing;
+        for j in 0..matrix.ncols() {
+            for k in cp[j]..cp[j + 1] {
+                triplets.push(Triplet::new(ri[k], j, matrix.val()[k]));
+            }
+        }
+        SparseColMat::try_new_from_triplets(matrix.nrows(), matrix.ncols(), &triplets).map_err(
+            |e| Error::Factorization {
+                step: self.state.step + 1,
+                message: format!("{e:?}"),
+            },
+        )
+    }
+
+    /// One step without cutting. `count_step` is false for the first pieces of a cut step.
+    fn advance_once(
+        &mut self,
+        h: f64,
+        recorder: &mut dyn Recorder<D>,
+        count_step: bool,
+    ) -> Result<StepReport> {
+        let step = self.state.step + 1;
+        let t0 = self.state.time;
+        self.ensure_system(h)?;
+        recorder.step_start(self, step);
+
+        let scheme = self.settings.scheme;
+        let (d0, d1) = scheme.displacement_weights();
+        let ndof = self.state.velocity.len();
+        let v0 = self.state.velocity.clone();
+        let u0 = self.state.displacement.clone();
+        let f_ext: Vec<f64> = self
+            .gravity_force
+            .iter()
+            .zip(&self.state.loads)
+            .map(|(g, l)| g + l)
+            .collect();
+        let method = self.contact.method;
+        let contact_in_newton =
+            self.detector.is_some() && method != ContactMethod::ExplicitProjection;
+        let x0 = end_positions(&self.reference, &u0, &v0, &vec![0.0; ndof], 0.0);
+        let translations_t0 = self.state.obstacle_translations.clone();
+        let translations_t1: Vec<f64> = translations_t0
+            .iter()
+            .zip(&self.state.obstacle_velocities)
+            .map(|(t, v)| t + h * v)
+            .collect();
+        let obstacles_t0 = self.obstacles_at(&translations_t0);
+        let obstacles_t1 = self.obstacles_at(&translations_t1);
+        let t1_vectors: Vec<SVector<f64, D>> = obstacles_t1.iter().map(|o| o.translation).collect();
+        let areas = if self.detector.is_some() {
+            self.tributary_areas(&x0)
+        } else {
+            Vec::new()
+        };
+        let diagonal = self
+            .system
+            .as_ref()
+            .map(|s| s.diagonal.clone())
+            .unwrap_or_default();
+
+        let mut multipliers: BTreeMap<(usize, MasterId), f64> =
+            if method == ContactMethod::AugmentedLagrangian {
+                self.state
+                    .multipliers
+                    .iter()
+                    .map(|&(s, m, l)| ((s, m), l))
+                    .collect()
+            } else {
+                BTreeMap::new()
+            };
+        let mut active: BTreeSet<(usize, MasterId)> = BTreeSet::new();
+        let mut active_initialised = false;
+        let mut seen_sets: HashSet<Vec<(usize, MasterId)>> = HashSet::new();
+        let mut passes = 0;
+
+        let mut v1 = v0.clone();
+        for (dof, p) in self.prescribed.iter().enumerate() {
+            if let Some(v) = p {
+                v1[dof] = *v;
+            }
+        }
+        let mut u_alpha = vec![0.0; ndof];
+        let mut residual = vec![0.0; ndof];
+        let mut iterations = 0;
+        let relative;
+        let mut terms = ContactTerms::<D>::default();
+        let mut candidates = 0;
+        loop {
+            let x_gap = end_positions(&self.reference, &u0, &v0, &v1, h);
+            if contact_in_newton {
+                let detector = self.detector.as_mut().expect("contact_in_newton");
+                detector.update_candidates(&x0, &x_gap, &obstacles_t0, &t1_vectors);
+                candidates = detector.candidates().len();
+                let pairs = detector.pairs(&x_gap, &obstacles_t1);
+                if method == ContactMethod::ImplicitProjection && !active_initialised {
+                    // Points predicted to penetrate with v1 = v0 start active: this also
+                    // catches points already touching that the master moves into.
+                    for p in &pairs {
+                        if p.gap < 0.0 {
+                            let key = match p.master {
+                                Master::Obstacle(k) => (p.slave, MasterId::Obstacle(k)),
+                                Master::Facet(f) => (
+                                    p.slave,
+                                    MasterId::Body(
+                                        self.detector.as_ref().expect("set").surface().facet_body()
+                                            [f],
+                                    ),
+                                ),
+                            };
+                            active.insert(key);
+                        }
+                    }
+                    active_initialised = true;
+                }
+                terms = self.contact_terms(
+                    &pairs,
+                    &obstacles_t1,
+                    &x_gap,
+                    &v0,
+                    &v1,
+                    h,
+                    &areas,
+                    &multipliers,
+                    &active,
+                    &diagonal,
+                );
+            }
+            for i in 0..ndof {
+                u_alpha[i] = u0[i] + h * (d0 * v0[i] + d1 * v1[i]);
+            }
+            let mut inertia = vec![0.0; ndof];
+            let mut momentum1 = vec![0.0; ndof];
+            let mut internal = vec![0.0; ndof];
+            assembly::symmetric_mul_add(&self.matrices.mass, &v0, -1.0 / h, &mut inertia);
+            assembly::symmetric_mul_add(&self.matrices.mass, &v1, 1.0 / h, &mut momentum1);
+            assembly::symmetric_mul_add(&self.matrices.stiffness, &u_alpha, 1.0, &mut internal);
+            let mut free_norm2 = 0.0;
+            let mut scale2 = [0.0f64; 5];
+            for i in 0..ndof {
+                let contact = terms.forces.get(i).copied().unwrap_or(0.0);
+                let old = inertia[i];
+                inertia[i] += momentum1[i];
+                residual[i] = inertia[i] + internal[i] - f_ext[i] - contact;
+                if self.prescribed[i].is_none() {
+                    free_norm2 += residual[i] * residual[i];
+                }
+                // The scale includes prescribed dofs: at equilibrium the free-dof forces
+                // cancel, while the reactions carry the load level.
+                scale2[0] += old * old;
+                scale2[1] += momentum1[i] * momentum1[i];
+                scale2[2] += internal[i] * internal[i];
+                scale2[3] += f_ext[i] * f_ext[i];
+                scale2[4] += contact * contact;
+            }
+            let scale = scale2.iter().fold(0.0f64, |m, s| m.max(s.sqrt()));
+            let norm = free_norm2.sqrt();
+            let rel = if scale > 0.0 { norm / scale } else { 0.0 };
+            if !rel.is_finite() {
+                return Err(Error::Unstable {
+                    step,
+                    time: t0 + h,
+                    detail: "the residual became non-finite".into(),
+                });
+            }
+            if rel <= self.settings.tolerance {
+                // Newton converged for the current multipliers and active set.
+                let mut done = true;
+                match method {
+                    ContactMethod::AugmentedLagrangian => {
+                        let worst = terms.pairs.iter().map(|p| -p.gap).fold(0.0, f64::max);
+                        if worst > self.contact.gap_tolerance {
+                            done = false;
+                            for p in &terms.pairs {
+                                let lambda = multipliers.entry(p.key).or_insert(0.0);
+                                *lambda = (*lambda - self.contact.penalty * p.gap).max(0.0);
+                            }
+                        }
+                    }
+                    ContactMethod::ImplicitProjection => {
+                        let mut changed = false;
+                        for p in &terms.pairs {
+                            if active.contains(&p.key) && p.normal_force < 0.0 {
+                                active.remove(&p.key);
+                                multipliers.remove(&p.key);
+                                changed = true;
+                                recorder.log(
+                                    self,
+                                    &format!(
+                                        "step {step}: node {} released (tension {:.3e} N)",
+                                        p.key.0, p.normal_force
+                                    ),
+                                );
+                            } else if !active.contains(&p.key)
+                                && p.gap < -self.contact.gap_tolerance
+                            {
+                                active.insert(p.key);
+                                changed = true;
+                                recorder.log(
+                                    self,
+                                    &format!(
+                                        "step {step}: node {} activated (gap {:.3e} m)",
+                                        p.key.0, p.gap
+                                    ),
+                                );
+                            }
+                        }
+                        if changed {
+                            let set: Vec<(usize, MasterId)> = active.iter().copied().collect();
+                            if !seen_sets.insert(set) {
+                                recorder.log(self, &format!("step {step}: the contact set cycles"));
+                                return Err(Error::NotConverged {
+                                    step,
+                                    time: t0,
+                                    iterations,
+                                    residual: rel,
+                                    tolerance: self.settings.tolerance,
+                                });
+                            }
+                            done = false;
+                        } else {
+                            let tolerance = self.contact.gap_tolerance / h;
+                            let worst = terms
+                                .pairs
+                                .iter()
+                                .filter(|p| active.contains(&p.key))
+                                .map(|p| p.normal_velocity.abs())
+                                .fold(0.0, f64::max);
+                            if worst > tolerance {
+                                done = false;
+                                for p in &terms.pairs {
+                                    if active.contains(&p.key) {
+                                        multipliers.insert(p.key, p.normal_force);
+                                    }
+                                }
+                            }
+                        }
+                    }
+                    _ => {}
+                }
+                if done {
+                    relative = rel;
+                    break;
+                }
+                passes += 1;
+                if passes > self.contact.max_passes {
+                    return Err(Error::NotConverged {
+                        step,
+                        time: t0,
+                        iterations,
+                        residual: rel,
+                        tolerance: self.settings.tolerance,
+                    });
+                }
+                continue;
+            }
+            if iterations >= self.settings.max_iterations {
+                return Err(Error::NotConverged {
+                    step,
+                    time: t0,
+                    iterations,
+                    residual: rel,
+                    tolerance: self.settings.tolerance,
+                });
+            }
+            let mut increment: Vec<f64> = residual
+                .iter()
+                .zip(&self.prescribed)
+                .map(|(r, p)| if p.is_some() { 0.0 } else { -r })
+                .collect();
+            if terms.entries.is_empty() {
+                if let Some(system) = &self.system {
+                    system.cholesky.solve_in_place(&mut increment);
+                }
+            } else {
+                let matrix = self.contact_matrix(&terms.entries)?;
+                let solver = match self.contact_solver.take() {
+                    Some(s) => s,
+                    None => SparseCholesky::analyse(&matrix)?,
+                };
+                let mut solver = solver;
+                solver.factor_any(&matrix, step)?;
+                solver.solve_in_place(&mut increment);
+                self.contact_solver = Some(solver);
+            }
+            let mut inc2 = 0.0;
+            for i in 0..ndof {
+                if self.prescribed[i].is_none() {
+                    v1[i] += increment[i];
+                    inc2 += increment[i] * increment[i];
+                }
+            }
+            iterations += 1;
+            let records = self.records(&terms, &x_gap, &active);
+            recorder.iteration(
+                self,
+                &IterationInfo {
+                    step,
+                    iteration: iterations,
+                    time: t0,
+                    time_step: h,
+                    residual_norm: norm,
+                    relative_residual: rel,
+                    increment_norm: inc2.sqrt(),
+                    end_velocity: &v1,
+                    end_positions: &end_positions(&self.reference, &u0, &v0, &v1, h),
+                    candidates,
+                    contacts: &records,
+                },
+            );
+        }
+
+        // The configuration update and the end-of-step projections.
+        let (b0, b1) = scheme.update_weights();
+        let mut u1: Vec<f64> = (0..ndof)
+            .map(|i| u0[i] + h * (b0 * v0[i] + b1 * v1[i]))
+            .collect();
+        let mut contact_forces = vec![vec![0.0; D]; self.obstacles.len()];
+        for p in &terms.pairs {
+            if let Some(k) = p.obstacle {
+                let f = p.normal * p.normal_force + p.friction;
+                for i in 0..D {
+                    contact_forces[k][i] += f[i];
+                }
+            }
+        }
+        let mut projection_loss = 0.0;
+        if self.detector.is_some()
+            && matches!(
+                method,
+                ContactMethod::ImplicitProjection | ContactMethod::ExplicitProjection
+            )
+        {
+            let x_end = end_positions(&self.reference, &u1, &v1, &vec![0.0; ndof], 0.0);
+            let detector = self.detector.as_mut().expect("checked");
+            detector.update_candidates(&x0, &x_end, &obstacles_t0, &t1_vectors);
+            let pairs = detector.pairs(&x_end, &obstacles_t1);
+            let surface_bodies: Vec<usize> = detector.surface().facet_body().to_vec();
+            let facets: Vec<[usize; D]> = detector.surface().facets().to_vec();
+            let kinetic_before = 0.5 * assembly::symmetric_dot(&self.matrices.mass, &v1, &v1);
+            for p in &pairs {
+                let key = match p.master {
+                    Master::Obstacle(k) => (p.slave, MasterId::Obstacle(k)),
+                    Master::Facet(f) => (p.slave, MasterId::Body(surface_bodies[f])),
+                };
+                let project = match method {
+                    ContactMethod::ImplicitProjection => active.contains(&key),
+                    _ => p.gap < 0.0,
+                };
+                if !project {
+                    continue;
+                }
+                let s = p.slave;
+                // Master nodes (weights) and the master's velocity.
+                let (masters, master_velocity): (Vec<(usize, f64)>, SVector<f64, D>) = match p
+                    .master
+                {
+                    Master::Obstacle(k) => (Vec::new(), self.obstacle_velocity(k)),
+                    Master::Facet(f) => {
+                        let w = p.barycentric;
+                        let list: Vec<(usize, f64)> =
+                            (0..D).map(|i| (facets[f][i], w[i])).collect();
+                        let mut v = SVector::<f64, D>::zeros();
+                        for &(n, c) in &list {
+                            v += SVector::<f64, D>::from_column_slice(&v1[n * D..n * D + D]) * c;
+                        }
+                        (list, v)
+                    }
+                };
+                let ms = self.nodal_mass[s];
+                let mm: f64 = masters.iter().map(|&(n, c)| c * self.nodal_mass[n]).sum();
+                // The shared (mass-weighted) point: the slave takes the part mm / (ms + mm) of
+                // the correction, the master the rest; a rigid master takes none.
+                let slave_share = if masters.is_empty() || ms + mm <= 0.0 {
+                    1.0
+                } else {
+                    mm / (ms + mm)
+                };
+                let correction = -p.normal * p.gap;
+                let sum_w2: f64 = masters.iter().map(|&(_, c)| c * c).sum::<f64>().max(1e-300);
+                let fixed = |dof: usize| self.prescribed[dof].is_some();
+                for k in 0..D {
+                    if !fixed(s * D + k) {
+                        u1[s * D + k] += slave_share * correction[k];
+                    }
+                    for &(n, c) in &masters {
+                        if !fixed(n * D + k) {
+                            u1[n * D + k] -= (1.0 - slave_share) * correction[k] * c / sum_w2;
+                        }
+                    }
+                }
+                if method == ContactMethod::ExplicitProjection {
+                    // Remove the approaching normal relative velocity, shared the same way.
+                    let vs = SVector::<f64, D>::from_column_slice(&v1[s * D..s * D + D]);
+                    let vn = p.normal.dot(&(vs - master_velocity));
+                    if vn < 0.0 {
+                        let dv = -p.normal * vn;
+                        for k in 0..D {
+                            if !fixed(s * D + k) {
+                                v1[s * D + k] += slave_share * dv[k];
+                            }
+                            for &(n, c) in &masters {
+                                if !fixed(n * D + k) {
+                                    v1[n * D + k] -= (1.0 - slave_share) * dv[k] * c / sum_w2;
+                                }
+                            }
+                        }
+                        if let Master::Obstacle(k) = p.master {
+                            // The impulse over the step, as a force.
+                            let f = dv * (ms * slave_share / h);
+                            for i in 0..D {
+                                contact_forces[k][i] += f[i];
+                            }
+                        }
+                    }
+                }
+            }
+            if method == ContactMethod::ExplicitProjection {
+                let kinetic_after = 0.5 * assembly::symmetric_dot(&self.matrices.mass, &v1, &v1);
+                projection_loss = (kinetic_before - kinetic_after).max(0.0);
+            }
+        }
+
+        // Reactions, works and dissipation.
+        let mut reactions = vec![vec![0.0; D]; self.bodies.len()];
+        let mut work = 0.0;
+        for i in 0..ndof {
+            let du = u1[i] - u0[i];
+            let reaction = if self.prescribed[i].is_some() {
+                residual[i]
+            } else {
+                0.0
+            };
+            work += (f_ext[i] + reaction) * du;
+        }
+        for (k, f) in contact_forces.iter().enumerate() {
+            let v = self.obstacle_velocity(k);
+            work += h * (0..D).map(|i| f[i] * v[i]).sum::<f64>();
+        }
+        for (b, r) in reactions.iter_mut().enumerate() {
+            for n in self.body_nodes(BodyId(b)) {
+                for k in 0..D {
+                    let dof = n * D + k;
+                    if self.prescribed[dof].is_some() {
+                        r[k] += residual[dof];
+                    }
+                }
+            }
+        }
+
+        // Final gaps in the stored configuration.
+        let mut max_penetration: f64 = 0.0;
+        let mut contacts = Vec::new();
+        if self.detector.is_some() {
+            let x_end = end_positions(&self.reference, &u1, &v1, &vec![0.0; ndof], 0.0);
+            let detector = self.detector.as_mut().expect("checked");
+            detector.update_candidates(&x0, &x_end, &obstacles_t0, &t1_vectors);
+            for p in detector.pairs(&x_end, &obstacles_t1) {
+                max_penetration = max_penetration.max(-p.gap);
+                let force = terms
+                    .pairs
+                    .iter()
+                    .find(|q| {
+                        q.key.0 == p.slave
+                            && q.obstacle
+                                == match p.master {
+                                    Master::Obstacle(k) => Some(k),
+                                    _ => None,
+                                }
+                    })
+                    .map_or(0.0, |q| q.normal_force.max(0.0));
+                if p.gap < 0.0 || force > 0.0 {
+                    contacts.push((p.slave, p.gap, force));
+                }
+            }
+        }
+        let active_contacts = terms.pairs.iter().filter(|p| p.normal_force > 0.0).count();
+
+        let previous = self.state.clone();
+        let state = &mut self.state;
+        state.step = if count_step { step } else { state.step };
+        state.time = t0 + h;
+        state.displacement = u1;
+        state.velocity = v1;
+        state.external_work += work;
+        state.dissipated_energy += h * terms.dissipation_rate + projection_loss;
+        state.obstacle_translations = translations_t1;
+        state.contact_energy = terms.energy;
+        state.multipliers = multipliers.iter().map(|(&(s, m), &l)| (s, m, l)).collect();
+        if method != ContactMethod::AugmentedLagrangian {
+            state.multipliers.clear();
+        }
+        let energies = self.energies();
+        let limit = 1e6 * self.energy_reference().max(f64::MIN_POSITIVE);
+        let finite = self
+            .state
+            .displacement
+            .iter()
+            .chain(&self.state.velocity)
+            .all(|x| x.is_finite());
+        if !finite || !energies.total().is_finite() || energies.total() > limit {
+            let detail = if !finite || !energies.total().is_finite() {
+                "a displacement, velocity or energy became non-finite".to_string()
+            } else {
+                format!(
+                    "the total energy {:.3e} J exceeds 1e6 times its reference {:.3e} J \
+                     (E(0) + |external work| + dissipated), a growth by {:.2e}",
+                    energies.total(),
+                    self.energy_reference(),
+                    energies.total() / self.energy_reference().max(f64::MIN_POSITIVE)
+                )
+            };
+            self.state = previous;
+            return Err(Error::Unstable {
+                step,
+                time: t0 + h,
+                detail,
+            });
+        }
+        let report = StepReport {
+            step,
+            time: t0 + h,
+            time_step: h,
+            iterations,
+            residual: relative,
+            energies,
+            max_penetration,
+            active_contacts,
+            reactions,
+            contact_forces,
+            contacts,
+        };
+        recorder.step_end(self, &report);
+        Ok(report)
+    }
+
+    fn records(
+        &self,
+        terms: &ContactTerms<D>,
+        x_gap: &[SVector<f64, D>],
+        active: &BTreeSet<(usize, MasterId)>,
+    ) -> Vec<ContactRecord<D>> {
+        terms
+            .pairs
+            .iter()
+            .map(|p| ContactRecord {
+                slave: p.key.0,
+                obstacle: p.obstacle,
+                position: x_gap[p.key.0],
+                master_point: p.master_point,
+                normal: p.normal,
+                gap: p.gap,
+                normal_force: p.normal_force,
+                friction_force: p.friction,
+                slip_velocity: p.slip,
+                active: p.normal_force > 0.0 || active.contains(&p.key),
+            })
+            .collect()
+    }
+}

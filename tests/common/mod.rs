@@ -1,0 +1,84 @@
+//! Helpers shared by the integration tests.
+#![allow(dead_code)]
+
+use nalgebra::{DMatrix, SVector, Vector2, Vector3};
+use softway::element::ElementKind;
+use softway::mesh::generators::{cuboid, rectangle};
+use softway::mesh::Mesh;
+
+/// Runs a generic test function in 2D and 3D: `both_dims!(f, g)` makes `d2::f`, `d3::f`, ...
+#[macro_export]
+macro_rules! both_dims {
+    ($($name:ident),* $(,)?) => {
+        mod d2 { $( #[test] fn $name() { super::$name::<2>(); } )* }
+        mod d3 { $( #[test] fn $name() { super::$name::<3>(); } )* }
+    };
+}
+
+/// Copies a mesh whose dimension equals D at run time.
+pub fn retype<const A: usize, const D: usize>(m: Mesh<A>) -> Mesh<D> {
+    assert_eq!(A, D);
+    Mesh {
+        nodes: m
+            .nodes
+            .iter()
+            .map(|x| SVector::<f64, D>::from_fn(|i, _| x[i]))
+            .collect(),
+        blocks: m.blocks,
+        node_sets: m.node_sets,
+    }
+}
+
+/// The box [0, size] with `cells` divisions (first D entries used); simplices or not.
+pub fn block<const D: usize>(size: [f64; 3], cells: [usize; 3], simplex: bool) -> Mesh<D> {
+    if D == 2 {
+        let kind = if simplex {
+            ElementKind::Tri3
+        } else {
+            ElementKind::Quad4
+        };
+        retype(
+            rectangle(
+                Vector2::zeros(),
+                Vector2::new(size[0], size[1]),
+                [cells[0], cells[1]],
+                kind,
+            )
+            .unwrap(),
+        )
+    } else {
+        let kind = if simplex {
+            ElementKind::Tet4
+        } else {
+            ElementKind::Hex8
+        };
+        retype(
+            cuboid(
+                Vector3::zeros(),
+                Vector3::new(size[0], size[1], size[2]),
+                cells,
+                kind,
+            )
+            .unwrap(),
+        )
+    }
+}
+
+/// A vector with the first D entries of `v`.
+pub fn vec_d<const D: usize>(v: [f64; 3]) -> SVector<f64, D> {
+    SVector::from_fn(|i, _| v[i])
+}
+
+/// The full dense matrix of a symmetric sparse matrix stored as its lower triangle.
+pub fn dense(a: &faer::sparse::SparseColMat<usize, f64>) -> DMatrix<f64> {
+    let n = a.nrows();
+    let mut m = DMatrix::zeros(n, n);
+    let (cp, ri, v) = (a.symbolic().col_ptr(), a.symbolic().row_idx(), a.val());
+    for j in 0..n {
+        for k in cp[j]..cp[j + 1] {
+            m[(ri[k], j)] = v[k];
+            m[(j, ri[k])] = v[k];
+        }
+    }
+    m
+}
