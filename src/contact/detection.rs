@@ -7,7 +7,9 @@
 //!   nodes at `x0` and `x1`, grown by [`DetectionOptions::margin`]) sits in a bounding-volume
 //!   hierarchy built once and refitted per call; each slave's segment `x0 -> x1` is tested
 //!   against it and against every obstacle's region swept between its translations at t0 and
-//!   t1. A node that crosses a thin body within one step is therefore caught.
+//!   t1. A node that travels several thicknesses of a body within one step still meets the
+//!   facets it crosses; one that goes through a whole body (ends beyond its far face) is seen
+//!   outside at the end of the step: step control must prevent that.
 //! * **Narrow phase** ([`Detector::pairs`]): for each slave and each master body (or obstacle)
 //!   among the candidates, the closest facet, its closest point Q, the feature holding Q, the
 //!   barycentric weights of Q, the facet's outward normal n and the gap `g = (x_P - Q) . n`.
@@ -426,6 +428,13 @@ where
     /// sorted by slave, then obstacles before facets, then index.
     pub fn candidates(&self) -> &[(usize, Master)] {
         &self.candidates
+    }
+
+    /// Drops the hierarchy so that the next [`Detector::update_candidates`] builds it anew.
+    /// Refitting keeps the topology of the first build; after large deformations (the tree
+    /// then still answers exactly, only slower) a rebuild restores its quality.
+    pub fn rebuild_hierarchy(&mut self) {
+        self.tree = None;
     }
 
     /// The swept box of every facet at the last update [m] (the broad phase's leaves).
