@@ -77,3 +77,7 @@ pub struct ReadmeDoctests;
 #[cfg(doctest)]
 #[doc = include_str!("../book/src/library.md")]
 pub struct BookLibraryDoctests;
+
+#[cfg(doctest)]
+#[doc = include_str!("../book/src/contact-detection.md")]
+pub struct BookContactDetectionDoctests;

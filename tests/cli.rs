@@ -1006,9 +1006,15 @@ fn set_addresses_obstacles_by_name() {
         err.contains("no item of `obstacles` is named `wall`"),
         "{err}"
     );
-    // Contact is not available yet: `run` refuses obstacles before writing anything.
-    let err = assert_invalid(&work, &["run", path]);
-    assert!(err.contains(path) && err.contains("not available"), "{err}");
+    // Obstacles run, with their contact force columns in history.csv.
+    let o = run_in(&work, &["run", path, "--quiet"]);
+    assert_success(&o);
+    let history = fs::read_to_string(work.join("out/tiny/history.csv")).unwrap();
+    assert!(history
+        .lines()
+        .next()
+        .unwrap()
+        .contains("contact_force.floor.x,contact_force.floor.y"));
 }
 
 // ---------------------------------------------------------------------------------------------

@@ -176,13 +176,14 @@ where
     let tied = all
         .iter()
         .filter(|a| a.1 <= dmin + 1e-9 * a.5.max(a.1) * 2.0);
-    let mut best: Option<&(usize, f64, f64, SVector<f64, D>, Feature, f64)> = None;
+    // First of the largest gap among the tied facets (they come in index order).
+    let mut best = None;
     for a in tied {
-        if best.is_none_or(|b| a.2 > b.2) {
-            best = Some(a);
+        if best.is_none_or(|b: (usize, f64, SVector<f64, D>, Feature)| a.2 > b.1) {
+            best = Some((a.0, a.2, a.3, a.4));
         }
     }
-    best.map(|b| (b.0, b.2, b.3, b.4))
+    best
 }
 
 fn brute_obstacle_gap<const D: usize>(o: &Obstacle<D>, p: &SVector<f64, D>) -> f64
@@ -284,6 +285,7 @@ where
             margin,
             deformable_pairs: true,
             hysteresis: 0.0,
+            facing: false,
         };
         let surface = ContactSurface::from_bodies(&[&a, &b, &c], &offsets);
         let facets = surface.facets().to_vec();

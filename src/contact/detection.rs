@@ -7,7 +7,9 @@
 //!   nodes at `x0` and `x1`, grown by [`DetectionOptions::margin`]) sits in a bounding-volume
 //!   hierarchy built once and refitted per call; each slave's segment `x0 -> x1` is tested
 //!   against it and against every obstacle's region swept between its translations at t0 and
-//!   t1. A node that crosses a thin body within one step is therefore caught.
+//!   t1. A node that travels several thicknesses of a body within one step still meets the
+//!   facets it crosses; one that goes through a whole body (ends beyond its far face) is seen
+//!   outside at the end of the step: step control must prevent that.
 //! * **Narrow phase** ([`Detector::pairs`]): for each slave and each master body (or obstacle)
 //!   among the candidates, the closest facet, its closest point Q, the feature holding Q, the
 //!   barycentric weights of Q, the facet's outward normal n and the gap `g = (x_P - Q) . n`.
@@ -145,6 +147,17 @@ where
             .any(|&g| self.facets[g].iter().any(|v| f.contains(v)))
     }
 
+    /// The area-weighted outward normal of a surface node at positions `x` [m] (not
+    /// normalised; zero off the surface).
+    pub fn node_normal(&self, node: usize, x: &[SVector<f64, D>]) -> SVector<f64, D> {
+        let mut n = SVector::zeros();
+        for &f in self.facets_of_node(node) {
+            let (m, normal) = <Dim<D>>::facet_measure_normal(&self.facets[f].map(|v| x[v]));
+            n += normal * m;
+        }
+        n
+    }
+
     /// One past the largest node id used.
     pub fn node_count(&self) -> usize {
         self.node_facet_offsets.len().saturating_sub(1)
@@ -166,6 +179,11 @@ pub struct DetectionOptions {
     /// does not flip between Newton iterations near edges and corners. Default 0 (exact ties
     /// only keep the previous choice).
     pub hysteresis: f64,
+    /// Pair a node with another body's facets only when they face each other (opposed
+    /// normals), as self-contact always does. At flush corners (two bars meeting head on) the
+    /// closest facet is otherwise a side face that the node merely lies on the extension of.
+    /// The simulation turns it on; default false (pure closest facet).
+    pub facing: bool,
 }
 
 impl Default for DetectionOptions {
@@ -175,6 +193,7 @@ impl Default for DetectionOptions {
             margin: 0.0,
             deformable_pairs: true,
             hysteresis: 0.0,
+            facing: false,
         }
     }
 }
@@ -258,6 +277,11 @@ where
     }
 }
 
+/// `x > 0`, false for NaN.
+fn positive(x: f64) -> bool {
+    x > 0.0
+}
+
 /// The closest facet chosen for one point.
 #[derive(Debug, Clone, Copy)]
 struct Choice<const D: usize> {
@@ -289,7 +313,7 @@ where
     for f in candidates {
         let v = verts(f);
         let (measure, normal) = <Dim<D>>::facet_measure_normal(&v);
-        if !(measure > 0.0) || !accept(&normal) {
+        if !positive(measure) || !accept(&normal) {
             continue;
         }
         let Some(proj) = <Dim<D>>::project_on_facet(p, &v) else {
@@ -343,6 +367,9 @@ where
     obstacle_facets: Vec<Option<ObstacleFacets<D>>>,
     previous: HashMap<(usize, MasterKey), usize>,
 }
+
+/// Slaves per traversal of the hierarchy in the broad phase.
+const GROUP: usize = 8;
 
 /// Candidate pairs of the slaves `slaves[start..start + chunk.len()]`.
 type Chunk = Vec<(usize, Master)>;
@@ -409,6 +436,13 @@ where
         &self.candidates
     }
 
+    /// Drops the hierarchy so that the next [`Detector::update_candidates`] builds it anew.
+    /// Refitting keeps the topology of the first build; after large deformations (the tree
+    /// then still answers exactly, only slower) a rebuild restores its quality.
+    pub fn rebuild_hierarchy(&mut self) {
+        self.tree = None;
+    }
+
     /// The swept box of every facet at the last update [m] (the broad phase's leaves).
     pub fn facet_boxes(&self) -> &[Aabb<D>] {
         &self.facet_boxes
@@ -471,31 +505,57 @@ where
         }
         self.sync_obstacles(obstacles);
         let tree = self.tree.as_ref().expect("built above");
-        let (surface, options, cache) = (&self.surface, &self.options, &self.obstacle_facets);
+        let (surface, options, cache, facet_boxes) = (
+            &self.surface,
+            &self.options,
+            &self.obstacle_facets,
+            &self.facet_boxes,
+        );
         self.candidates = map_chunks(&surface.slaves, |start, slaves| -> Chunk {
             let mut out = Vec::new();
             let mut hits = Vec::new();
-            for (i, &node) in slaves.iter().enumerate() {
-                let body = surface.slave_body[start + i];
-                let seg = Aabb::from_points([&x0[node], &x1[node]]);
-                for (k, o) in obstacles.iter().enumerate() {
-                    let swept = (o.translation, obstacle_translation_t1[k]);
-                    if obstacle_overlaps(o, swept, &seg, margin, cache[k].as_ref()) {
-                        out.push((node, Master::Obstacle(k)));
-                    }
-                }
+            let mut ring = Vec::new();
+            // A few neighbouring slaves share one traversal of the hierarchy: their boxes are
+            // tiny and close, so one query with their union costs about as much as one of
+            // theirs, and the hits are then re-tested per slave.
+            for (g, group) in slaves.chunks(GROUP).enumerate() {
+                let segs: Vec<Aabb<D>> = group
+                    .iter()
+                    .map(|&n| Aabb::from_points([&x0[n], &x1[n]]))
+                    .collect();
+                let union = segs.iter().skip(1).fold(segs[0], |u, b| u.merged(b));
                 hits.clear();
-                tree.query(&seg, &mut hits);
+                tree.query(&union, &mut hits);
                 hits.sort_unstable();
-                for &f in &hits {
-                    let fb = surface.facet_body[f];
-                    let allowed = if fb == body {
-                        options.self_contact && !surface.is_excluded(node, f)
-                    } else {
-                        options.deformable_pairs
-                    };
-                    if allowed {
-                        out.push((node, Master::Facet(f)));
+                for (i, (&node, seg)) in group.iter().zip(&segs).enumerate() {
+                    let body = surface.slave_body[start + g * GROUP + i];
+                    for (k, o) in obstacles.iter().enumerate() {
+                        let swept = (o.translation, obstacle_translation_t1[k]);
+                        if obstacle_overlaps(o, swept, seg, margin, cache[k].as_ref()) {
+                            out.push((node, Master::Obstacle(k)));
+                        }
+                    }
+                    // The nodes of the facets around the slave: a facet holding one of them
+                    // is excluded from self-contact.
+                    ring.clear();
+                    if options.self_contact {
+                        for &f in surface.facets_of_node(node) {
+                            ring.extend_from_slice(&surface.facets[f]);
+                        }
+                    }
+                    for &f in &hits {
+                        if !facet_boxes[f].intersects(seg) {
+                            continue;
+                        }
+                        let allowed = if surface.facet_body[f] == body {
+                            options.self_contact
+                                && !surface.facets[f].iter().any(|v| ring.contains(v))
+                        } else {
+                            options.deformable_pairs
+                        };
+                        if allowed {
+                            out.push((node, Master::Facet(f)));
+                        }
                     }
                 }
             }
@@ -531,14 +591,6 @@ where
             groups.push((a, b));
             a = b;
         }
-        // Facets are only paired with nodes that face them (opposed normals), for self-contact
-        // and between bodies alike: at flush corners the closest facet is otherwise a side
-        // face that the node merely lies on the extension of.
-        let normals = if self.options.self_contact || self.options.deformable_pairs {
-            Some(self.node_normals(x))
-        } else {
-            None
-        };
         let (surface, options, cache, previous, cands) = (
             &self.surface,
             &self.options,
@@ -587,7 +639,11 @@ where
                                 }
                                 let key = MasterKey::Body(body);
                                 let prev = previous.get(&(node, key)).copied();
-                                let own = normals.as_ref();
+                                // Only facets facing the node (opposed normals): always for
+                                // self-contact, between bodies with `facing`.
+                                let own = (options.facing
+                                    || body == surface.facet_body[surface.facets_of_node(node)[0]])
+                                    .then(|| surface.node_normal(node, x));
                                 let choice = choose(
                                     &p,
                                     cands[i..j].iter().map(|c| match c.1 {
@@ -595,8 +651,7 @@ where
                                         Master::Obstacle(_) => unreachable!("facets only"),
                                     }),
                                     |f| surface.facets[f].map(|v| x[v]),
-                                    // Only facets facing the node.
-                                    |n| own.is_none_or(|nn| nn[node].dot(n) < 0.0),
+                                    |n| own.is_none_or(|nn| nn.dot(n) < 0.0),
                                     prev,
                                     options.hysteresis,
                                 );
@@ -626,18 +681,6 @@ where
             .collect();
         results.into_iter().filter(|r| r.3).map(|r| r.0).collect()
     }
-
-    /// Area-weighted outward normals of the surface nodes at `x` (zero off the surface).
-    fn node_normals(&self, x: &[SVector<f64, D>]) -> Vec<SVector<f64, D>> {
-        let mut normals = vec![SVector::<f64, D>::zeros(); self.surface.node_count()];
-        for f in &self.surface.facets {
-            let (m, n) = <Dim<D>>::facet_measure_normal(&f.map(|v| x[v]));
-            for &v in f {
-                normals[v] += n * m;
-            }
-        }
-        normals
-    }
 }
 
 /// Whether an obstacle's region swept between translations `t.0` and `t.1`, grown by `margin`,
@@ -656,7 +699,7 @@ where
     match &o.shape {
         ObstacleShape::Halfspace { point, normal } => {
             let norm = normal.norm();
-            if !(norm > 0.0) {
+            if !positive(norm) {
                 return false;
             }
             let n = normal / norm;
@@ -731,7 +774,7 @@ where
     match &o.shape {
         ObstacleShape::Halfspace { point, normal } => {
             let norm = normal.norm();
-            if !(norm > 0.0) {
+            if !positive(norm) {
                 return None;
             }
             let n = normal / norm;

@@ -148,23 +148,6 @@ where
     pub fn query(&self, query: &Aabb<D>, out: &mut Vec<usize>) {
         <Dim<D>>::tree_query(&self.inner, query, out);
     }
-
-    /// Calls `f(a, b)` for every leaf `a` of `self` and `b` of `other` whose boxes intersect
-    /// (simultaneous traversal of both trees). `self_boxes`/`other_boxes` are the leaves'
-    /// current boxes, used to re-test the pairs the traversal yields.
-    pub fn pairs_with(
-        &self,
-        other: &Self,
-        self_boxes: &[Aabb<D>],
-        other_boxes: &[Aabb<D>],
-        f: &mut impl FnMut(usize, usize),
-    ) {
-        <Dim<D>>::tree_pairs(&self.inner, &other.inner, &mut |a, b| {
-            if self_boxes[a].intersects(&other_boxes[b]) {
-                f(a, b)
-            }
-        });
-    }
 }
 
 /// Dimension-specific geometry: the parry types behind the BVH and the projection of a point
@@ -180,8 +163,6 @@ pub trait GeometryDim<const D: usize>: sealed::Sealed {
     fn tree_refit(tree: &mut Self::Tree, boxes: &[Aabb<D>]);
     #[doc(hidden)]
     fn tree_query(tree: &Self::Tree, query: &Aabb<D>, out: &mut Vec<usize>);
-    #[doc(hidden)]
-    fn tree_pairs(a: &Self::Tree, b: &Self::Tree, f: &mut dyn FnMut(usize, usize));
 
     /// The closest point to `p` [m] on the facet with vertices `v` [m], with its barycentric
     /// weights and feature. `None` for a degenerate facet (zero length or zero area).
@@ -218,6 +199,7 @@ macro_rules! impl_tree {
             (bvh, Default::default())
         }
 
+        #[cfg(not(feature = "parallel"))]
         fn tree_refit(tree: &mut Self::Tree, boxes: &[Aabb<$D>]) {
             for (i, b) in boxes.iter().enumerate() {
                 let aabb = $parry::bounding_volume::Aabb::new($to(&b.min), $to(&b.max));
@@ -228,18 +210,28 @@ macro_rules! impl_tree {
             tree.0.refit(&mut tree.1);
         }
 
+        #[cfg(feature = "parallel")]
+        fn tree_refit(tree: &mut Self::Tree, boxes: &[Aabb<$D>]) {
+            let updates: Vec<($parry::bounding_volume::Aabb, u32, f64)> = boxes
+                .iter()
+                .enumerate()
+                .map(|(i, b)| {
+                    (
+                        $parry::bounding_volume::Aabb::new($to(&b.min), $to(&b.max)),
+                        i as u32,
+                        0.0,
+                    )
+                })
+                .collect();
+            let mut statuses = Vec::new();
+            tree.0
+                .insert_or_update_batch_partially_parallel(&updates, &mut statuses);
+            tree.0.refit_parallel(&mut tree.1);
+        }
+
         fn tree_query(tree: &Self::Tree, query: &Aabb<$D>, out: &mut Vec<usize>) {
             let q = $parry::bounding_volume::Aabb::new($to(&query.min), $to(&query.max));
             out.extend(tree.0.intersect_aabb(&q).map(|i| i as usize));
-        }
-
-        fn tree_pairs(a: &Self::Tree, b: &Self::Tree, f: &mut dyn FnMut(usize, usize)) {
-            if a.0.is_empty() || b.0.is_empty() {
-                return;
-            }
-            for (i, j) in a.0.leaf_pairs(&b.0, |n1, n2| n1.intersects(n2)) {
-                f(i as usize, j as usize);
-            }
         }
     };
 }
@@ -255,7 +247,7 @@ impl GeometryDim<2> for Dim<2> {
     ) -> Option<FacetProjection<2>> {
         let ab = v[1] - v[0];
         let l2 = ab.norm_squared();
-        if !(l2 > 0.0) || !l2.is_finite() {
+        if !(l2.is_finite() && l2 > 0.0) {
             return None;
         }
         let t = (p - v[0]).dot(&ab) / l2;
@@ -305,7 +297,8 @@ impl GeometryDim<3> for Dim<3> {
         let ac = c - a;
         let cross2 = ab.cross(&ac).norm_squared();
         // Zero (or numerically zero) area: no normal, no meaningful projection.
-        if !(cross2 > 1e-28 * ab.norm_squared() * ac.norm_squared()) || !cross2.is_finite() {
+        let floor = 1e-28 * ab.norm_squared() * ac.norm_squared();
+        if !cross2.is_finite() || cross2.is_nan() || cross2 <= floor {
             return None;
         }
         let done = |point: SVector<f64, 3>, barycentric: [f64; 3], feature| {

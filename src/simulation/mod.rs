@@ -581,6 +581,7 @@ where
                     margin: 0.25 * mean_size,
                     deformable_pairs: true,
                     hysteresis: 1e-3 * mean_size,
+                    facing: true,
                 },
             ));
         }

@@ -937,18 +937,22 @@ where
             }
         }
         let mut projection_loss = 0.0;
-        if self.detector.is_some()
-            && matches!(
-                method,
-                ContactMethod::ImplicitProjection | ContactMethod::ExplicitProjection
-            )
-        {
-            let x_end = end_positions(&self.reference, &u1, &v1, &vec![0.0; ndof], 0.0);
-            let detector = self.detector.as_mut().expect("checked");
-            detector.update_candidates(&x0, &x_end, &obstacles_t0, &t1_vectors);
-            let pairs = detector.pairs(&x_end, &obstacles_t1);
-            let surface_bodies: Vec<usize> = detector.surface().facet_body().to_vec();
-            let facets: Vec<[usize; D]> = detector.surface().facets().to_vec();
+        let projecting = matches!(
+            method,
+            ContactMethod::ImplicitProjection | ContactMethod::ExplicitProjection
+        );
+        let end_pairs = match self.detector.as_mut() {
+            Some(detector) if projecting => {
+                let x_end = end_positions(&self.reference, &u1, &v1, &vec![0.0; ndof], 0.0);
+                detector.update_candidates(&x0, &x_end, &obstacles_t0, &t1_vectors);
+                let pairs = detector.pairs(&x_end, &obstacles_t1);
+                let surface_bodies: Vec<usize> = detector.surface().facet_body().to_vec();
+                let facets: Vec<[usize; D]> = detector.surface().facets().to_vec();
+                Some((pairs, surface_bodies, facets))
+            }
+            _ => None,
+        };
+        if let Some((pairs, surface_bodies, facets)) = end_pairs {
             let kinetic_before = 0.5 * assembly::symmetric_dot(&self.matrices.mass, &v1, &v1);
             for p in &pairs {
                 let key = match p.master {
@@ -1063,9 +1067,8 @@ where
         // Final gaps in the stored configuration.
         let mut max_penetration: f64 = 0.0;
         let mut contacts = Vec::new();
-        if self.detector.is_some() {
+        if let Some(detector) = self.detector.as_mut() {
             let x_end = end_positions(&self.reference, &u1, &v1, &vec![0.0; ndof], 0.0);
-            let detector = self.detector.as_mut().expect("checked");
             detector.update_candidates(&x0, &x_end, &obstacles_t0, &t1_vectors);
             for p in detector.pairs(&x_end, &obstacles_t1) {
                 max_penetration = max_penetration.max(-p.gap);
