@@ -390,3 +390,52 @@ where
         "v = {v}, expected {exact}"
     );
 }
+
+#[test]
+fn axisymmetric_bar_impact() {
+    // A solid cylinder (r <= 0.1 m, axis y) falling along its axis onto a rigid plane: with
+    // nu = 0 the wave is one-dimensional; the force is rho c v0 pi R^2 over the whole revolution.
+    let radius = 0.1;
+    let mesh = block::<2>([radius, L, 0.0], [2, 100, 1], false);
+    let mut mesh = mesh;
+    mesh.translate(&vec_d::<2>([0.0, GAP, 0.0]));
+    let floor = Obstacle::new(
+        "floor",
+        ObstacleShape::Halfspace {
+            point: vec_d::<2>([0.0, 0.0, 0.0]),
+            normal: vec_d::<2>([0.0, 1.0, 0.0]),
+        },
+    );
+    let h = 2.0 * L / 300.0;
+    let mut sim = Simulation2::builder()
+        .kinematics(softway::dim::Kinematics::Axisymmetric)
+        .time_step(h)
+        .body(Body::new("rod", mesh, bar_material()).with_velocity(vec_d::<2>([0.0, -V0, 0.0])))
+        .obstacle(floor)
+        .contact(contact(ContactMethod::SoftWay))
+        .build()
+        .unwrap();
+    let mut forces = Vec::new();
+    let (mut first, mut last, mut n) = (None, 0, 0);
+    while sim.state().time < GAP / V0 + 2.0 * L + 0.5 {
+        let r = sim.step().unwrap();
+        n += 1;
+        if r.contact_forces[0][1] > 0.0 {
+            first.get_or_insert(n);
+            last = n;
+            forces.push(r.contact_forces[0][1]);
+        }
+    }
+    let duration = (last - first.unwrap() + 1) as f64 * h;
+    let inner = &forces[2..forces.len() - 2];
+    let mean = inner.iter().sum::<f64>() / inner.len() as f64;
+    let exact = V0 * std::f64::consts::PI * radius * radius;
+    assert!(
+        (duration - 2.0 * L).abs() < 0.05 * 2.0 * L,
+        "duration {duration}"
+    );
+    assert!(
+        (mean - exact).abs() < 0.05 * exact,
+        "force {mean} vs {exact}"
+    );
+}
