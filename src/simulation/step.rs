@@ -20,6 +20,57 @@ use crate::solver::SparseCholesky;
 /// Deepest step cut: a step is halved at most this many times.
 const MAX_CUTS: usize = 4;
 
+/// Largest number of preconditioned conjugate-gradient iterations (with the previous contact
+/// factorisation as preconditioner) before the contact matrix is factored anew.
+const PCG_ITERATIONS: usize = 8;
+
+/// Preconditioned conjugate gradients on `apply(x) = b` to a relative residual of 1e-10 (well below the Newton tolerance); `None`
+/// if that takes more than `max` iterations.
+fn conjugate_gradients(
+    apply: &dyn Fn(&[f64]) -> Vec<f64>,
+    precondition: &dyn Fn(&mut [f64]),
+    b: &[f64],
+    max: usize,
+) -> Option<Vec<f64>> {
+    let n = b.len();
+    let dot = |a: &[f64], b: &[f64]| a.iter().zip(b).map(|(x, y)| x * y).sum::<f64>();
+    let b_norm = dot(b, b).sqrt();
+    if b_norm == 0.0 {
+        return Some(vec![0.0; n]);
+    }
+    let mut x = b.to_vec();
+    precondition(&mut x);
+    let ax = apply(&x);
+    let mut r: Vec<f64> = b.iter().zip(&ax).map(|(b, a)| b - a).collect();
+    let mut z = r.clone();
+    precondition(&mut z);
+    let mut p = z.clone();
+    let mut rz = dot(&r, &z);
+    for _ in 0..max {
+        if dot(&r, &r).sqrt() <= 1e-10 * b_norm {
+            return Some(x);
+        }
+        let ap = apply(&p);
+        let alpha = rz / dot(&p, &ap);
+        if !alpha.is_finite() || alpha <= 0.0 {
+            return None;
+        }
+        for i in 0..n {
+            x[i] += alpha * p[i];
+            r[i] -= alpha * ap[i];
+        }
+        z.copy_from_slice(&r);
+        precondition(&mut z);
+        let rz_next = dot(&r, &z);
+        let beta = rz_next / rz;
+        rz = rz_next;
+        for i in 0..n {
+            p[i] = z[i] + beta * p[i];
+        }
+    }
+    (dot(&r, &r).sqrt() <= 1e-10 * b_norm).then_some(x)
+}
+
 /// The factored contact-free iteration matrix for one step size.
 pub(super) struct IterationSystem {
     time_step: f64,
@@ -875,6 +926,10 @@ where
                 if let Some(system) = &self.system {
                     system.cholesky.solve_in_place(&mut increment);
                 }
+            } else if let Some(x) = self.preconditioned_solve(&terms, &increment) {
+                // The previous contact factorisation (or the contact-free one) preconditions
+                // conjugate gradients; the contact matrix is factored only when that fails.
+                increment = x;
             } else {
                 // The consistent tangent first; where its geometric part makes the matrix
                 // indefinite (large pressure on a soft body), Newton goes on without it.
@@ -1151,6 +1206,51 @@ where
         };
         recorder.step_end(self, &report);
         Ok(report)
+    }
+
+    /// Solves `(A0 + K_c) x = b` by conjugate gradients preconditioned with the last factored
+    /// contact matrix (the contact set changes little from one iteration or step to the next)
+    /// or, failing that, the contact-free `A0`. `None` when the tangent has a geometric part or
+    /// CG does not converge in a few iterations: the caller then factors `A0 + K_c`.
+    fn preconditioned_solve(&self, terms: &ContactTerms<D>, b: &[f64]) -> Option<Vec<f64>> {
+        let system = self.system.as_ref()?;
+        if !terms.geometric.is_empty() {
+            return None;
+        }
+        let entries: Vec<(usize, usize, f64)> = terms
+            .entries
+            .iter()
+            .copied()
+            .filter(|&(r, c, _)| self.prescribed[r].is_none() && self.prescribed[c].is_none())
+            .collect();
+        let apply = |x: &[f64]| -> Vec<f64> {
+            let mut y = vec![0.0; x.len()];
+            assembly::symmetric_mul_add(&system.matrix, x, 1.0, &mut y);
+            for &(r, c, v) in &entries {
+                y[r] += v * x[c];
+                if r != c {
+                    y[c] += v * x[r];
+                }
+            }
+            y
+        };
+        if let Some(previous) = &self.contact_solver {
+            if let Some(x) =
+                conjugate_gradients(&apply, &|r| previous.solve_in_place(r), b, PCG_ITERATIONS)
+            {
+                return Some(x);
+            }
+        }
+        // The contact-free factorisation only pays for a few contact points.
+        if terms.pairs.len() <= 64 {
+            return conjugate_gradients(
+                &apply,
+                &|r| system.cholesky.solve_in_place(r),
+                b,
+                2 * PCG_ITERATIONS,
+            );
+        }
+        None
     }
 
     fn records(
