@@ -63,6 +63,11 @@ pub trait Recorder<const D: usize>
 where
     Dim<D>: SpatialDim<D>,
 {
+    /// Whether the recorder wants the per-iteration hooks; the solver skips building their
+    /// data (positions, contact records) when it does not.
+    fn is_enabled(&self) -> bool {
+        true
+    }
     /// Before the first iteration of a step.
     fn step_start(&mut self, _sim: &Simulation<D>, _step: usize) {}
     /// After every Newton / contact iteration.
@@ -77,4 +82,11 @@ where
 #[derive(Debug, Clone, Copy, Default)]
 pub struct NullRecorder;
 
-impl<const D: usize> Recorder<D> for NullRecorder where Dim<D>: SpatialDim<D> {}
+impl<const D: usize> Recorder<D> for NullRecorder
+where
+    Dim<D>: SpatialDim<D>,
+{
+    fn is_enabled(&self) -> bool {
+        false
+    }
+}

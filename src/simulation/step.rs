@@ -958,6 +958,9 @@ where
             }
             last_increment = increment;
             iterations += 1;
+            if !recorder.is_enabled() {
+                continue;
+            }
             let records = self.records(&terms, &x_gap, &active);
             recorder.iteration(
                 self,
