@@ -7,8 +7,8 @@ use std::time::Instant;
 
 use nalgebra::Vector3;
 use softway::assembly::{cell_values, BodyIntegration, CellTable, Pattern};
-use softway::dim::Kinematics;
 use softway::contact::{ContactSurface, DetectionOptions, Detector, Obstacle, ObstacleShape};
+use softway::dim::Kinematics;
 use softway::prelude::*;
 
 fn median(mut v: Vec<f64>) -> f64 {
@@ -109,10 +109,26 @@ fn main() -> Result<()> {
     // Detection on the same box against a plane under it: one update of the swept candidates
     // and one narrow phase, as every Newton iteration of a contact step does.
     let surface = ContactSurface::from_bodies(&[&sim.bodies()[0].mesh], &[0]);
-    let mut detector = Detector::new(surface, DetectionOptions { margin: 0.01, facing: true, ..Default::default() });
-    let plane = Obstacle::new("ground", ObstacleShape::Halfspace { point: Vector3::new(0.0, 0.0, -0.005), normal: Vector3::new(0.0, 0.0, 1.0) });
+    let mut detector = Detector::new(
+        surface,
+        DetectionOptions {
+            margin: 0.01,
+            facing: true,
+            ..Default::default()
+        },
+    );
+    let plane = Obstacle::new(
+        "ground",
+        ObstacleShape::Halfspace {
+            point: Vector3::new(0.0, 0.0, -0.005),
+            normal: Vector3::new(0.0, 0.0, 1.0),
+        },
+    );
     let x0 = sim.positions();
-    let x1: Vec<Vector3<f64>> = x0.iter().map(|x| x - Vector3::new(0.0, 0.0, 0.01)).collect();
+    let x1: Vec<Vector3<f64>> = x0
+        .iter()
+        .map(|x| x - Vector3::new(0.0, 0.0, 0.01))
+        .collect();
     let obstacles = vec![plane];
     let detection: Vec<f64> = (0..10)
         .map(|_| {

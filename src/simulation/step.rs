@@ -1052,33 +1052,29 @@ where
                 };
                 let correction = -p.normal * p.gap;
                 let sum_w2: f64 = masters.iter().map(|&(_, c)| c * c).sum::<f64>().max(1e-300);
-                let fixed = |dof: usize| self.prescribed[dof].is_some();
-                for k in 0..D {
-                    if !fixed(s * D + k) {
-                        u1[s * D + k] += slave_share * correction[k];
-                    }
-                    for &(n, c) in &masters {
-                        if !fixed(n * D + k) {
-                            u1[n * D + k] -= (1.0 - slave_share) * correction[k] * c / sum_w2;
+                // Moves the slave by its share of `delta` and the master point by the rest,
+                // spread over the facet nodes by their weights; prescribed dofs stay.
+                let prescribed = &self.prescribed;
+                let share = |values: &mut [f64], delta: &SVector<f64, D>| {
+                    for k in 0..D {
+                        if prescribed[s * D + k].is_none() {
+                            values[s * D + k] += slave_share * delta[k];
+                        }
+                        for &(n, c) in &masters {
+                            if prescribed[n * D + k].is_none() {
+                                values[n * D + k] -= (1.0 - slave_share) * delta[k] * c / sum_w2;
+                            }
                         }
                     }
-                }
+                };
+                share(&mut u1, &correction);
                 if method == ContactMethod::ExplicitProjection {
                     // Remove the approaching normal relative velocity, shared the same way.
                     let vs = SVector::<f64, D>::from_column_slice(&v1[s * D..s * D + D]);
                     let vn = p.normal.dot(&(vs - master_velocity));
                     if vn < 0.0 {
                         let dv = -p.normal * vn;
-                        for k in 0..D {
-                            if !fixed(s * D + k) {
-                                v1[s * D + k] += slave_share * dv[k];
-                            }
-                            for &(n, c) in &masters {
-                                if !fixed(n * D + k) {
-                                    v1[n * D + k] -= (1.0 - slave_share) * dv[k] * c / sum_w2;
-                                }
-                            }
-                        }
+                        share(&mut v1, &dv);
                         if let Master::Obstacle(k) = p.master {
                             // The impulse over the step, as a force.
                             let f = dv * (ms * slave_share / h);
