@@ -176,6 +176,7 @@ where
     let tied = all
         .iter()
         .filter(|a| a.1 <= dmin + 1e-9 * a.5.max(a.1) * 2.0);
+    #[allow(clippy::type_complexity)]
     let mut best: Option<&(usize, f64, f64, SVector<f64, D>, Feature, f64)> = None;
     for a in tied {
         if best.is_none_or(|b| a.2 > b.2) {

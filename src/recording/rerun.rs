@@ -40,14 +40,15 @@ use std::path::Path;
 
 use nalgebra::SVector;
 use re_sdk::blueprint::{
-    Blueprint, BlueprintActivation, ContainerLike, Horizontal, Spatial2DView, Spatial3DView,
+    Blueprint, BlueprintActivation, ContainerLike, Horizontal, Spatial2DView, Spatial3DView, Tabs,
     TextLogView, TimePanel, TimeSeriesView, Vertical,
 };
 use re_sdk::{RecordingStream, RecordingStreamBuilder, RecordingStreamResult};
 use re_sdk_types::archetypes::{
     Arrows2D, Arrows3D, LineStrips2D, LineStrips3D, Mesh3D, Points2D, Points3D, Scalars,
-    SeriesLines, TextLog,
+    SeriesLines, TextLog, ViewCoordinates,
 };
+use re_sdk_types::blueprint::components::PlayState;
 use re_sdk_types::components::{Color, Radius, TextLogLevel};
 
 use super::{ContactRecord, IterationInfo, Recorder};
@@ -369,6 +370,18 @@ where
                 self.scene_size = size;
             }
         }
+        if D == 3 {
+            // The 3D view's up axis: against gravity (z when there is none).
+            let g = sim.settings().gravity;
+            let y_up = g.iter().any(|c| *c != 0.0) && g[1].abs() > g[2].abs() && g[1] < 0.0;
+            let coordinates = if y_up {
+                ViewCoordinates::RIGHT_HAND_Y_UP()
+            } else {
+                ViewCoordinates::RIGHT_HAND_Z_UP()
+            };
+            let r = self.rec.log_static("/", &coordinates);
+            self.check(r);
+        }
         for body in &bodies {
             if D == 3 {
                 let r = self.rec.log_static(
@@ -508,7 +521,7 @@ where
             let scale = self.field_max;
             let mesh_path = format!("bodies/{}/mesh", body.name);
             let nodes_path = format!("bodies/{}/nodes", body.name);
-            let node_color = Color::from_rgb(40, 40, 40);
+            let node_color = Color::from_rgb(210, 210, 210);
             let node_radius = Radius::new_ui_points(1.5);
             let (r1, r2) = if D == 2 {
                 let p2: Vec<[f32; 2]> = positions.iter().map(xy).collect();
@@ -889,18 +902,33 @@ fn blueprint<const D: usize>() -> Blueprint {
             .with_contents(contents)
             .into()
     };
-    let plots = Vertical::new([
-        TimeSeriesView::new("Solver")
-            .with_contents(["solver/residual_norm", "solver/increment_norm"])
+    let residuals = Tabs::new([
+        TimeSeriesView::new("Residual norm [N]")
+            .with_contents(["solver/residual_norm"])
             .into(),
+        TimeSeriesView::new("Relative residual")
+            .with_contents(["solver/relative_residual"])
+            .into(),
+        TimeSeriesView::new("Increment norm [m/s]")
+            .with_contents(["solver/increment_norm"])
+            .into(),
+    ]);
+    let plots = Vertical::new([
+        residuals.into(),
         TimeSeriesView::new("Active set")
             .with_contents(["solver/active_set_size", "solver/candidates"])
             .into(),
-        TimeSeriesView::new("Energy").with_origin("energy").into(),
+        TimeSeriesView::new("Energy [J]")
+            .with_origin("energy")
+            .into(),
         TextLogView::new("Log").with_origin("log").into(),
     ]);
+    // Following: the viewer opens on the last iteration recorded (live: the newest).
+    let time = TimePanel::new()
+        .with_timeline("iteration")
+        .with_play_state(PlayState::Following);
     Blueprint::new(Horizontal::new([scene, plots.into()]).with_column_shares(vec![2.0, 1.0]))
-        .with_time_panel(TimePanel::new().with_timeline("iteration"))
+        .with_time_panel(time)
 }
 
 /// The boundary triangles of a 3D mesh with compact vertex numbering.
@@ -931,14 +959,15 @@ fn xyz<const D: usize>(p: &SVector<f64, D>) -> [f32; 3] {
     [p[0] as f32, p[1] as f32, z as f32]
 }
 
-/// Viridis-like colour of `value / top` (dark blue at 0, yellow at 1).
+/// Rainbow colour of `value / top` (blue at 0, cyan, green, yellow, red at 1), bright enough
+/// on the viewer's dark background.
 fn colormap(value: f64, top: f64) -> Color {
     const STOPS: [[f64; 3]; 5] = [
-        [68.0, 1.0, 84.0],
-        [59.0, 82.0, 139.0],
-        [33.0, 145.0, 140.0],
-        [94.0, 201.0, 98.0],
-        [253.0, 231.0, 37.0],
+        [40.0, 90.0, 255.0],
+        [0.0, 200.0, 255.0],
+        [40.0, 220.0, 80.0],
+        [255.0, 220.0, 0.0],
+        [230.0, 30.0, 30.0],
     ];
     let s = if top > 0.0 && value.is_finite() {
         (value / top).clamp(0.0, 1.0)
@@ -1120,10 +1149,12 @@ mod tests {
 
     #[test]
     fn colormap_ends() {
-        assert_eq!(colormap(0.0, 1.0), Color::from_rgb(68, 1, 84));
-        assert_eq!(colormap(2.0, 1.0), Color::from_rgb(253, 231, 37));
-        assert_eq!(colormap(f64::NAN, 1.0), Color::from_rgb(68, 1, 84));
-        assert_eq!(colormap(1.0, 0.0), Color::from_rgb(68, 1, 84));
+        let blue = Color::from_rgb(40, 90, 255);
+        assert_eq!(colormap(0.0, 1.0), blue);
+        assert_eq!(colormap(2.0, 1.0), Color::from_rgb(230, 30, 30));
+        assert_eq!(colormap(0.5, 1.0), Color::from_rgb(40, 220, 80));
+        assert_eq!(colormap(f64::NAN, 1.0), blue);
+        assert_eq!(colormap(1.0, 0.0), blue);
     }
 
     #[test]
