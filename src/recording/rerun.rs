@@ -200,10 +200,16 @@ where
         Ok((Self::from_stream(rec), MemoryRecording { storage }))
     }
 
-    /// Spawns a Rerun viewer (the `rerun` executable on `PATH`) and streams to it over gRPC on
-    /// the loopback interface.
+    /// Spawns a Rerun viewer (the `rerun` executable on `PATH`, listening on the loopback
+    /// interface only) and streams to it over gRPC.
     pub fn spawn() -> Result<Self> {
-        Ok(Self::from_stream(builder().spawn().map_err(rerun_error)?))
+        let opts = re_sdk::SpawnOptions {
+            extra_args: vec!["--bind".into(), "127.0.0.1".into()],
+            ..Default::default()
+        };
+        Ok(Self::from_stream(
+            builder().spawn_opts(&opts).map_err(rerun_error)?,
+        ))
     }
 
     /// Streams to a running viewer over gRPC, e.g. `rerun+http://127.0.0.1:9876/proxy`
