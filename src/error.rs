@@ -138,6 +138,9 @@ pub enum Error {
     /// A handle does not name an existing body, obstacle or node.
     #[error("{0}")]
     InvalidHandle(String),
+    /// The Rerun recording could not be created, written or flushed (feature `rerun`).
+    #[error("Rerun recording: {0}")]
+    Recording(String),
 }
 
 /// `Result` with softway's [`Error`].

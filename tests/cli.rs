@@ -1027,8 +1027,11 @@ fn announced_features_are_refused_cleanly() {
     let path = scene.to_str().unwrap();
     let work = dir.path().join("work");
     fs::create_dir(&work).unwrap();
-    let err = assert_invalid(&work, &["run", path, "--rerun", "run.rrd"]);
-    assert!(err.contains("--rerun is not available"), "{err}");
+    #[cfg(not(feature = "rerun"))]
+    {
+        let err = assert_invalid(&work, &["run", path, "--rerun", "run.rrd"]);
+        assert!(err.contains("--rerun is not available"), "{err}");
+    }
     let err = assert_invalid(&work, &["run", path, "--checkpoint-every", "10"]);
     assert!(err.contains("--checkpoint-every is not available"), "{err}");
     let err = assert_invalid(&work, &["resume", "out/tiny/checkpoints/step_10.ckpt"]);
@@ -1222,4 +1225,28 @@ fn every_bundled_scene_passes_check() {
         "check wrote {:?}",
         entries(dir.path())
     );
+}
+
+// ---------------------------------------------------------------------------------------------
+// --rerun (feature `rerun`): the recording is written next to the outputs; a file that cannot
+// be created is invalid input (nothing run, nothing written).
+
+#[cfg(feature = "rerun")]
+#[test]
+fn rerun_recording_is_written() {
+    let dir = tempdir();
+    let scene = write_scene(dir.path(), "tiny", TINY);
+    let path = scene.to_str().unwrap();
+    let work = dir.path().join("work");
+    fs::create_dir(&work).unwrap();
+    let o = run_in(&work, &["run", path, "--rerun", "run.rrd", "--quiet"]);
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let bytes = fs::read(work.join("run.rrd")).unwrap();
+    assert_eq!(&bytes[..4], b"RRF2");
+    assert!(work.join("out/tiny/history.csv").is_file());
+
+    let empty = dir.path().join("empty");
+    fs::create_dir(&empty).unwrap();
+    let err = assert_invalid(&empty, &["run", path, "--rerun", "no/such/dir/run.rrd"]);
+    assert!(err.contains("no/such/dir/run.rrd"), "{err}");
 }

@@ -76,10 +76,13 @@ fn main() -> ExitCode {
             quiet,
             checkpoint_every,
         } => {
+            #[cfg(not(feature = "rerun"))]
             if rerun.is_some() {
                 return invalid(&Error::NotAvailable {
                     feature: "--rerun".into(),
-                    detail: "the Rerun recording lands in a later version; run without it".into(),
+                    detail: "this softway was built without the `rerun` cargo feature; \
+                             rebuild with `--features rerun` or run without it"
+                        .into(),
                 });
             }
             if checkpoint_every.is_some() {
@@ -99,8 +102,8 @@ fn main() -> ExitCode {
                 .to_string();
             let out = out.unwrap_or_else(|| Path::new("out").join(&stem));
             match loaded.dimension() {
-                Ok(2) => run::<2>(&loaded, &out, &stem, quiet),
-                Ok(_) => run::<3>(&loaded, &out, &stem, quiet),
+                Ok(2) => run::<2>(&loaded, &out, &stem, quiet, rerun.as_deref()),
+                Ok(_) => run::<3>(&loaded, &out, &stem, quiet, rerun.as_deref()),
                 Err(e) => invalid(&e),
             }
         }
@@ -200,13 +203,23 @@ where
     ExitCode::SUCCESS
 }
 
-fn run<const D: usize>(loaded: &LoadedScene, out: &Path, stem: &str, quiet: bool) -> ExitCode
+fn run<const D: usize>(
+    loaded: &LoadedScene,
+    out: &Path,
+    stem: &str,
+    quiet: bool,
+    rerun: Option<&Path>,
+) -> ExitCode
 where
     Dim<D>: SpatialDim<D>,
 {
     let scene = match loaded.build::<D>() {
         Ok(s) => s,
         Err(e) => return invalid_in(&loaded.path, &e),
+    };
+    let mut recorder = match CliRecorder::new(&scene, rerun) {
+        Ok(r) => r,
+        Err(e) => return invalid(&e),
     };
     // scene-format.md: nothing but errors with --quiet or when stderr is not a terminal.
     let show = !quiet && std::io::stderr().is_terminal();
@@ -236,10 +249,12 @@ where
             ));
         }
     };
-    let result = output::run::<D>(&scene, out, stem, &mut on_progress);
+    let result = output::run::<D>(&scene, out, stem, &mut on_progress, recorder.as_dyn());
     if let Some(bar) = bar {
         bar.finish_and_clear();
     }
+    // Completes the .rrd file (whatever the outcome of the run: a failed run is worth replaying).
+    let recorded = recorder.finish();
     let warnings = match &result {
         Ok(summary) => &summary.warnings,
         Err(failure) => &failure.summary.warnings,
@@ -249,7 +264,11 @@ where
             eprintln!("warning: {w} (also in summary.json)");
         }
     }
+    if let Err(e) = &recorded {
+        eprintln!("error: {e}");
+    }
     match result {
+        Ok(_) if recorded.is_err() => ExitCode::from(FAILED),
         Ok(summary) => {
             if show {
                 eprintln!(
@@ -270,7 +289,13 @@ where
                 | Error::Unstable { .. }
                 | Error::Factorization { .. }
                 | Error::Output { .. } => FAILED,
-                _ => return invalid_in(&loaded.path, &failure.error),
+                _ => {
+                    // Invalid input: nothing is run, so nothing stays written.
+                    if let Some(file) = rerun {
+                        let _ = std::fs::remove_file(file);
+                    }
+                    return invalid_in(&loaded.path, &failure.error);
+                }
             };
             eprintln!("error: {}", failure.error);
             if code == FAILED {
@@ -282,5 +307,65 @@ where
             }
             ExitCode::from(code)
         }
+    }
+}
+
+/// The recorder of `run`: a [`RerunRecorder`](softway::recording::RerunRecorder) writing the
+/// `--rerun` file when given, else nothing.
+struct CliRecorder<const D: usize>
+where
+    Dim<D>: SpatialDim<D>,
+{
+    null: softway::recording::NullRecorder,
+    #[cfg(feature = "rerun")]
+    rerun: Option<softway::recording::RerunRecorder<D>>,
+}
+
+impl<const D: usize> CliRecorder<D>
+where
+    Dim<D>: SpatialDim<D>,
+{
+    #[cfg(feature = "rerun")]
+    fn new(scene: &softway::io::scene::Scene<D>, path: Option<&Path>) -> Result<Self, Error> {
+        use softway::recording::RerunRecorder;
+        use softway::simulation::BodyId;
+        let rerun = match path {
+            None => None,
+            Some(path) => {
+                let mut r = RerunRecorder::<D>::to_file(path)?.with_obstacles(&scene.obstacles);
+                for p in &scene.probes {
+                    r = r.with_probe(p.name.clone(), BodyId(p.body), p.node);
+                }
+                Some(r)
+            }
+        };
+        Ok(CliRecorder {
+            null: softway::recording::NullRecorder,
+            rerun,
+        })
+    }
+
+    #[cfg(not(feature = "rerun"))]
+    fn new(_scene: &softway::io::scene::Scene<D>, _path: Option<&Path>) -> Result<Self, Error> {
+        Ok(CliRecorder {
+            null: softway::recording::NullRecorder,
+        })
+    }
+
+    fn as_dyn(&mut self) -> &mut dyn softway::recording::Recorder<D> {
+        #[cfg(feature = "rerun")]
+        if let Some(r) = &mut self.rerun {
+            return r;
+        }
+        &mut self.null
+    }
+
+    /// Flushes and completes the recording (the .rrd footer).
+    fn finish(self) -> Result<(), Error> {
+        #[cfg(feature = "rerun")]
+        if let Some(r) = self.rerun {
+            return r.finish();
+        }
+        Ok(())
     }
 }

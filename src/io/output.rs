@@ -15,6 +15,7 @@ use crate::assembly::von_mises;
 use crate::dim::{Dim, SpatialDim};
 use crate::element::ElementKind;
 use crate::error::{Error, Result};
+use crate::recording::Recorder;
 use crate::simulation::{BodyId, Simulation, StepReport};
 
 /// `summary.json`.
@@ -309,12 +310,14 @@ fn write_json(path: &Path, summary: &Summary) -> Result<()> {
 
 /// Runs a validated scene to its end time, writing the outputs into `out` (created if
 /// missing). The history is flushed row by row, so a failed run leaves everything up to its
-/// last good step.
+/// last good step. `recorder` observes every step and iteration
+/// ([`NullRecorder`](crate::recording::NullRecorder) for none); it never changes the results.
 pub fn run<const D: usize>(
     scene: &Scene<D>,
     out: &Path,
     stem: &str,
     progress: &mut dyn FnMut(Progress),
+    recorder: &mut dyn Recorder<D>,
 ) -> std::result::Result<Summary, Box<RunFailure>>
 where
     Dim<D>: SpatialDim<D>,
@@ -379,7 +382,7 @@ where
         } else {
             h
         };
-        match sim.advance(step, &mut crate::recording::NullRecorder) {
+        match sim.advance(step, recorder) {
             Ok(report) => {
                 summary.steps = report.step;
                 summary.total_iterations += report.iterations;

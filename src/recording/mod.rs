@@ -1,6 +1,9 @@
 //! Observers of the solver: hooks at the start of a step, after every iteration and at the end
 //! of a step. The solver never depends on what a recorder does.
 
+#[cfg(feature = "rerun")]
+pub mod rerun;
+
 use nalgebra::SVector;
 
 use crate::dim::{Dim, SpatialDim};
@@ -77,6 +80,9 @@ where
     /// A notable event (contact status changes, step cuts), as text.
     fn log(&mut self, _sim: &Simulation<D>, _message: &str) {}
 }
+
+#[cfg(feature = "rerun")]
+pub use rerun::{ColorField, RerunRecorder};
 
 /// A recorder that does nothing (and costs nothing).
 #[derive(Debug, Clone, Copy, Default)]
