@@ -956,8 +956,11 @@ fn surface<const D: usize>(facets: &[[usize; D]], nodes: usize) -> (Vec<usize>, 
     (surface_nodes, triangles)
 }
 
+/// 2D positions and vectors as Rerun logs them. Rerun's 2D views draw y downwards (image
+/// convention), so y is negated: the scene appears upright, and tools reading `bodies/*`,
+/// `contacts/*` or `obstacles/*` of a 2D recording must negate y back.
 fn xy<const D: usize>(p: &SVector<f64, D>) -> [f32; 2] {
-    [p[0] as f32, p[1] as f32]
+    [p[0] as f32, -(p[1] as f32)]
 }
 
 fn xyz<const D: usize>(p: &SVector<f64, D>) -> [f32; 3] {
