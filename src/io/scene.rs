@@ -870,6 +870,25 @@ impl LoadedScene {
         Ok(SVector::from_column_slice(v))
     }
 
+    /// `{key}.name` must differ from the `earlier` names of its list and be a valid name.
+    fn unique_name<'a>(
+        &self,
+        key: &str,
+        mut earlier: impl Iterator<Item = &'a str>,
+        name: &str,
+        what: &str,
+    ) -> Result<()> {
+        let key = format!("{key}.name");
+        if earlier.any(|e| e == name) {
+            return Err(self.error(
+                &key,
+                format!("\"{name}\" again"),
+                format!("a unique {what} name"),
+            ));
+        }
+        self.name(&key, name)
+    }
+
     /// Names become history.csv columns (`probe.<name>.ux`), VTK file names
     /// (`vtk/<body>_<step>.vtu`) and `--set obstacles.NAME.` paths: no commas, quotes, dots,
     /// slashes or spaces.
@@ -989,14 +1008,8 @@ impl LoadedScene {
         let mut bodies = Vec::new();
         for (b, spec) in self.file.bodies.iter().enumerate() {
             let key = format!("bodies.{b}");
-            if self.file.bodies[..b].iter().any(|o| o.name == spec.name) {
-                return Err(self.error(
-                    &format!("{key}.name"),
-                    format!("\"{}\" again", spec.name),
-                    "a unique body name",
-                ));
-            }
-            self.name(&format!("{key}.name"), &spec.name)?;
+            let earlier = self.file.bodies[..b].iter().map(|x| x.name.as_str());
+            self.unique_name(&key, earlier, &spec.name, "body")?;
             let (mesh, groups) = self.mesh::<D>(&format!("{key}.mesh"), &spec.mesh, &spec.name)?;
             let material = self.material(&format!("{key}.material"), &spec.material)?;
             let mut body = Body::new(spec.name.clone(), mesh, material);
@@ -1054,14 +1067,8 @@ impl LoadedScene {
         let mut obstacles = Vec::new();
         for (o, spec) in self.file.obstacles.iter().enumerate() {
             let key = format!("obstacles.{o}");
-            if self.file.obstacles[..o].iter().any(|x| x.name == spec.name) {
-                return Err(self.error(
-                    &format!("{key}.name"),
-                    format!("\"{}\" again", spec.name),
-                    "a unique obstacle name",
-                ));
-            }
-            self.name(&format!("{key}.name"), &spec.name)?;
+            let earlier = self.file.obstacles[..o].iter().map(|x| x.name.as_str());
+            self.unique_name(&key, earlier, &spec.name, "obstacle")?;
             let shape = self.shape::<D>(&format!("{key}.shape"), &spec.shape)?;
             let mut obstacle = Obstacle::new(spec.name.clone(), shape);
             if let Some(v) = &spec.velocity {
@@ -1076,14 +1083,8 @@ impl LoadedScene {
         let mut probes = Vec::new();
         for (p, spec) in self.file.probes.iter().enumerate() {
             let key = format!("probes.{p}");
-            if self.file.probes[..p].iter().any(|x| x.name == spec.name) {
-                return Err(self.error(
-                    &format!("{key}.name"),
-                    format!("\"{}\" again", spec.name),
-                    "a unique probe name",
-                ));
-            }
-            self.name(&format!("{key}.name"), &spec.name)?;
+            let earlier = self.file.probes[..p].iter().map(|x| x.name.as_str());
+            self.unique_name(&key, earlier, &spec.name, "probe")?;
             let body = bodies
                 .iter()
                 .position(|b| b.name == spec.body)

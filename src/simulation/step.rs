@@ -670,6 +670,14 @@ where
         let relative;
         let mut terms = ContactTerms::<D>::default();
         let mut candidates = 0;
+        let tolerance = self.settings.tolerance;
+        let not_converged = |iterations: usize, residual: f64| Error::NotConverged {
+            step,
+            time: t0,
+            iterations,
+            residual,
+            tolerance,
+        };
         let mut previous_norm = f64::INFINITY;
         let mut last_increment: Vec<f64> = Vec::new();
         let mut backtracks = 0;
@@ -825,13 +833,7 @@ where
                             let set: Vec<(usize, MasterId)> = active.iter().copied().collect();
                             if !seen_sets.insert(set) {
                                 recorder.log(self, &format!("step {step}: the contact set cycles"));
-                                return Err(Error::NotConverged {
-                                    step,
-                                    time: t0,
-                                    iterations,
-                                    residual: rel,
-                                    tolerance: self.settings.tolerance,
-                                });
+                                return Err(not_converged(iterations, rel));
                             }
                             done = false;
                         } else {
@@ -898,24 +900,12 @@ where
                 previous_norm = f64::INFINITY;
                 last_increment.clear();
                 if passes > self.contact.max_passes {
-                    return Err(Error::NotConverged {
-                        step,
-                        time: t0,
-                        iterations,
-                        residual: rel,
-                        tolerance: self.settings.tolerance,
-                    });
+                    return Err(not_converged(iterations, rel));
                 }
                 continue;
             }
             if iterations >= self.settings.max_iterations {
-                return Err(Error::NotConverged {
-                    step,
-                    time: t0,
-                    iterations,
-                    residual: rel,
-                    tolerance: self.settings.tolerance,
-                });
+                return Err(not_converged(iterations, rel));
             }
             let mut increment: Vec<f64> = residual
                 .iter()
