@@ -66,6 +66,7 @@ pub mod prelude {
         Body, BodyId, Energies, MassKind, Settings, Simulation, Simulation2, Simulation3,
         SimulationBuilder, StepReport,
     };
+    pub use crate::solver::FillOrdering;
     pub use crate::time::{Beta, SpaceTimeScheme};
 }
 

@@ -339,6 +339,13 @@ fn out_of_range_numbers() {
             "2 or 3",
         ),
         (
+            "ordering_unknown",
+            "simulation.ordering",
+            "ordering = ",
+            "\"metis\"",
+            "\"nested_dissection\"",
+        ),
+        (
             "kinematics_unknown",
             "simulation.kinematics",
             "kinematics = ",

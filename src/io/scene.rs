@@ -15,6 +15,7 @@ use crate::error::{Error, Result};
 use crate::material::{LinearElastic, Material};
 use crate::mesh::{generators, Mesh};
 use crate::simulation::{Body, Constraint, MassKind, Settings};
+use crate::solver::FillOrdering;
 use crate::time::{Beta, SpaceTimeScheme};
 
 // ---------------------------------------------------------------------------------------------
@@ -105,6 +106,10 @@ pub struct SimulationSection {
     /// "consistent" | "lumped".
     #[serde(default)]
     pub mass: Option<String>,
+    /// Fill-reducing ordering of the sparse factorisation: "nested_dissection" (default) |
+    /// "minimum_degree".
+    #[serde(default)]
+    pub ordering: Option<String>,
 }
 
 /// A friction law as written.
@@ -503,6 +508,7 @@ fn empty_scene() -> SceneFile {
             max_iterations: 1,
             tolerance: 1e-8,
             mass: None,
+            ordering: None,
         },
         contact: ContactSection::default(),
         bodies: Vec::new(),
@@ -990,6 +996,17 @@ impl LoadedScene {
                 ))
             }
         };
+        let ordering = match s.ordering.as_deref() {
+            None | Some("nested_dissection") => FillOrdering::NestedDissection,
+            Some("minimum_degree") => FillOrdering::MinimumDegree,
+            Some(o) => {
+                return Err(self.error(
+                    "simulation.ordering",
+                    format!("\"{o}\""),
+                    "\"nested_dissection\" or \"minimum_degree\"",
+                ))
+            }
+        };
         let settings = Settings {
             time_step,
             scheme,
@@ -998,6 +1015,7 @@ impl LoadedScene {
             max_iterations: s.max_iterations as usize,
             tolerance: s.tolerance,
             mass,
+            ordering,
         };
 
         let contact = self.check_contact()?;

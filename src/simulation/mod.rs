@@ -12,7 +12,7 @@ use crate::dim::{Dim, Kinematics, SpatialDim};
 use crate::error::{Error, Result};
 use crate::material::Material;
 use crate::mesh::Mesh;
-use crate::solver::SparseCholesky;
+use crate::solver::FillOrdering;
 use crate::time::{Beta, SpaceTimeScheme};
 
 /// Consistent or row-sum lumped mass matrix.
@@ -43,6 +43,9 @@ pub struct Settings<const D: usize> {
     pub tolerance: f64,
     /// Mass matrix kind.
     pub mass: MassKind,
+    /// Fill-reducing ordering of the sparse Cholesky factorisation.
+    #[serde(default)]
+    pub ordering: FillOrdering,
 }
 
 impl<const D: usize> Default for Settings<D>
@@ -62,6 +65,7 @@ where
             max_iterations: 50,
             tolerance: 1e-8,
             mass: MassKind::Consistent,
+            ordering: FillOrdering::NestedDissection,
         }
     }
 }
@@ -254,7 +258,11 @@ where
     obstacles: Vec<Obstacle<D>>,
     contact: ContactSettings,
     detector: Option<Detector<D>>,
-    contact_solver: Option<SparseCholesky>,
+    /// The last contact factorisations (newest first), kept as CG preconditioners.
+    contact_solvers: Vec<step::ContactFactor>,
+    /// Whether contact matrices are factored in single precision (as CG preconditioners);
+    /// switched off for good the first time that does not converge.
+    single_precision_contact: bool,
     boundary_faces: Vec<Vec<usize>>,
     nodal_mass: Vec<f64>,
 }
@@ -349,6 +357,12 @@ where
     /// Mass matrix kind.
     pub fn mass(mut self, m: MassKind) -> Self {
         self.settings.mass = m;
+        self
+    }
+
+    /// Fill-reducing ordering of the sparse Cholesky factorisation.
+    pub fn ordering(mut self, ordering: FillOrdering) -> Self {
+        self.settings.ordering = ordering;
         self
     }
 
@@ -629,7 +643,8 @@ where
             obstacles,
             contact,
             detector,
-            contact_solver: None,
+            contact_solvers: Vec::new(),
+            single_precision_contact: true,
             boundary_faces,
             nodal_mass,
         };
