@@ -230,7 +230,7 @@ impl SparseCholesky {
                 Conj::No,
                 faer::ColMut::from_slice_mut(rhs).as_mat_mut(),
                 par,
-                MemStack::new(&mut *scratch),
+                MemStack::new(&mut scratch),
             ),
             Values::Single(values) => {
                 let mut single: Vec<f32> = rhs.iter().map(|&v| v as f32).collect();
@@ -238,7 +238,7 @@ impl SparseCholesky {
                     Conj::No,
                     faer::ColMut::from_slice_mut(&mut single).as_mat_mut(),
                     par,
-                    MemStack::new(&mut *scratch),
+                    MemStack::new(&mut scratch),
                 );
                 for (r, s) in rhs.iter_mut().zip(&single) {
                     *r = f64::from(*s);
