@@ -26,8 +26,9 @@ const PCG_SLACK: usize = 6;
 
 /// At most this many unknowns whose contact stiffness changed strongly since the nearest
 /// factorisation are left to conjugate gradients; more, and the contact matrix is factored.
-/// A factorisation costs about 18 solves (Hex8 box, nested dissection) and then serves the
-/// following iterations and steps; CG needs about one iteration per changed unknown.
+/// A factorisation costs about 20 to 25 preconditioner solves (Hex8 box, nested dissection,
+/// single precision) and then serves the following iterations and steps; CG needs about one
+/// iteration per changed unknown.
 const PCG_LOW_RANK: usize = 12;
 
 /// A change of the contact diagonal above this fraction of the factored diagonal counts as a
