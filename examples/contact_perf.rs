@@ -6,7 +6,7 @@
 //!   zeta = 1e10 Pa/m, h = 1e-3 s;
 //! * `peer`: the peer-figures cube (0.2 m, E = 1e5 Pa, nu = 0.3, rho = 1000 kg/m^3, 16 cubes
 //!   per edge split into tetrahedra), arriving at 1.4 m/s (a 0.1 m drop), zeta = 1e8 Pa/m,
-//!   h = 1e-3 s.
+//!   h = 1e-3 s, 100 steps (the box leaves the plane after about 45).
 
 use std::time::Instant;
 
@@ -37,7 +37,7 @@ fn main() -> Result<()> {
             1e5,
             1.4,
             1e8,
-            60,
+            100,
         ),
         _ => (
             1.0,
