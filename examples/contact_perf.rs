@@ -8,23 +8,14 @@
 //!   per edge split into tetrahedra), arriving at 1.4 m/s (a 0.1 m drop), zeta = 1e8 Pa/m,
 //!   h = 1e-3 s, 100 steps (the box leaves the plane after about 45).
 
+mod common;
+
+use common::{mean, median};
 use std::time::Instant;
 
 use nalgebra::Vector3;
 use softway::contact::{ContactMethod, ContactSettings, Obstacle, ObstacleShape};
 use softway::prelude::*;
-
-fn median(mut v: Vec<f64>) -> f64 {
-    if v.is_empty() {
-        return f64::NAN;
-    }
-    v.sort_by(f64::total_cmp);
-    v[v.len() / 2]
-}
-
-fn mean(v: &[f64]) -> f64 {
-    v.iter().sum::<f64>() / v.len() as f64
-}
 
 fn main() -> Result<()> {
     let scene = std::env::args().nth(1).unwrap_or_else(|| "hex".into());

@@ -4,16 +4,14 @@
 //!
 //! Run: `cargo run --release --example ordering_report [-- CELLS_PER_EDGE]` (default 20).
 
+mod common;
+
+use common::median;
 use std::time::Instant;
 
 use nalgebra::Vector3;
 use softway::prelude::*;
 use softway::solver::SparseCholesky;
-
-fn median(mut v: Vec<f64>) -> f64 {
-    v.sort_by(f64::total_cmp);
-    v[v.len() / 2]
-}
 
 fn main() -> Result<()> {
     let n: usize = std::env::args()
@@ -44,6 +42,18 @@ fn main() -> Result<()> {
     }
     println!("hex8 cube {n}^3 cells, {} unknowns", a.nrows());
     let b: Vec<f64> = (0..a.nrows()).map(|i| (i as f64 * 0.1).sin()).collect();
+    let median_solve = |chol: &SparseCholesky| {
+        median(
+            (0..5)
+                .map(|_| {
+                    let mut x = b.clone();
+                    let t = Instant::now();
+                    chol.solve_in_place(&mut x);
+                    t.elapsed().as_secs_f64()
+                })
+                .collect(),
+        )
+    };
     for ordering in [FillOrdering::NestedDissection, FillOrdering::MinimumDegree] {
         let t = Instant::now();
         let mut chol = SparseCholesky::analyse_with(&a, ordering, 3)?;
@@ -51,29 +61,11 @@ fn main() -> Result<()> {
         let t = Instant::now();
         chol.factor(&a, 0)?;
         let double = t.elapsed().as_secs_f64();
-        let solve = median(
-            (0..5)
-                .map(|_| {
-                    let mut x = b.clone();
-                    let t = Instant::now();
-                    chol.solve_in_place(&mut x);
-                    t.elapsed().as_secs_f64()
-                })
-                .collect(),
-        );
+        let solve = median_solve(&chol);
         let t = Instant::now();
         chol.factor_single(&a, 0)?;
         let single = t.elapsed().as_secs_f64();
-        let solve_single = median(
-            (0..5)
-                .map(|_| {
-                    let mut x = b.clone();
-                    let t = Instant::now();
-                    chol.solve_in_place(&mut x);
-                    t.elapsed().as_secs_f64()
-                })
-                .collect(),
-        );
+        let solve_single = median_solve(&chol);
         println!(
             "{:>18}: factor entries {:>10} ({:.0} MiB); analysis {analysis:.3} s; numeric factorisation {double:.3} s (single precision {single:.3} s); solve {solve:.4} s (single {solve_single:.4} s)",
             ordering.name(),

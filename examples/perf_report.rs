@@ -3,6 +3,9 @@
 //!
 //! Run: `cargo run --release --example perf_report [-- CELLS]` (default 100000).
 
+mod common;
+
+use common::median;
 use std::time::Instant;
 
 use nalgebra::Vector3;
@@ -10,11 +13,6 @@ use softway::assembly::{cell_values, BodyIntegration, CellTable, Pattern};
 use softway::contact::{ContactSurface, DetectionOptions, Detector, Obstacle, ObstacleShape};
 use softway::dim::Kinematics;
 use softway::prelude::*;
-
-fn median(mut v: Vec<f64>) -> f64 {
-    v.sort_by(f64::total_cmp);
-    v[v.len() / 2]
-}
 
 fn main() -> Result<()> {
     let target: usize = std::env::args()

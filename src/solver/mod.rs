@@ -120,14 +120,20 @@ impl SparseCholesky {
         self.symbolic.len_val()
     }
 
-    /// Like [`SparseCholesky::factor`], re-analysing first (same ordering) when `matrix` has
-    /// another pattern than the analysed one (contact between bodies adds couplings).
-    pub fn factor_any(&mut self, matrix: &SparseColMat<usize, f64>, step: usize) -> Result<()> {
+    /// Re-analyses (same ordering) when `matrix` has another pattern than the analysed one.
+    fn analyse_if_new_pattern(&mut self, matrix: &SparseColMat<usize, f64>) -> Result<()> {
         let same = self.pattern.0 == matrix.symbolic().col_ptr()
             && self.pattern.1 == matrix.symbolic().row_idx();
         if !same {
             *self = SparseCholesky::analyse_with(matrix, self.ordering, self.block)?;
         }
+        Ok(())
+    }
+
+    /// Like [`SparseCholesky::factor`], re-analysing first (same ordering) when `matrix` has
+    /// another pattern than the analysed one (contact between bodies adds couplings).
+    pub fn factor_any(&mut self, matrix: &SparseColMat<usize, f64>, step: usize) -> Result<()> {
+        self.analyse_if_new_pattern(matrix)?;
         self.factor(matrix, step)
     }
 
@@ -137,11 +143,7 @@ impl SparseCholesky {
         matrix: &SparseColMat<usize, f64>,
         step: usize,
     ) -> Result<()> {
-        let same = self.pattern.0 == matrix.symbolic().col_ptr()
-            && self.pattern.1 == matrix.symbolic().row_idx();
-        if !same {
-            *self = SparseCholesky::analyse_with(matrix, self.ordering, self.block)?;
-        }
+        self.analyse_if_new_pattern(matrix)?;
         self.factor_single(matrix, step)
     }
 
