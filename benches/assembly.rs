@@ -28,10 +28,7 @@ fn assembly(c: &mut Criterion) {
     let steel = LinearElastic::new(2.1e11, 0.3, 7800.0).expect("valid");
     let body = BodyIntegration {
         kinematics: Kinematics::Solid,
-        tangent: Material::LinearElastic(steel)
-            .linear_tangent(Kinematics::Solid)
-            .expect("linear"),
-        density: steel.density,
+        material: Material::LinearElastic(steel),
     };
     for kind in [ElementKind::Tet4, ElementKind::Hex8] {
         let mesh = box_mesh(kind, 100_000);

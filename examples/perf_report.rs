@@ -22,10 +22,7 @@ fn main() -> Result<()> {
     let steel = LinearElastic::new(2.1e11, 0.3, 7800.0)?;
     let integration = BodyIntegration {
         kinematics: Kinematics::Solid,
-        tangent: Material::LinearElastic(steel)
-            .linear_tangent(Kinematics::Solid)
-            .expect("linear"),
-        density: steel.density,
+        material: Material::LinearElastic(steel),
     };
     println!(
         "machine: {} logical cores",

@@ -36,21 +36,33 @@
 // `!(x > 0.0)` is deliberate: it rejects NaN along with non-positive values.
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 
+// Internal machinery: public only with the `internals` feature (benches and figure examples
+// measure it); embedders see none of it, and none of faer's types.
+#[cfg(feature = "internals")]
 pub mod assembly;
+#[cfg(not(feature = "internals"))]
+#[allow(dead_code, unreachable_pub)]
+pub(crate) mod assembly;
 pub mod contact;
 pub mod dim;
 pub mod element;
 pub mod error;
+pub mod friction;
 pub mod geometry;
 pub mod io;
 pub mod material;
 pub mod mesh;
 pub mod recording;
 pub mod simulation;
+#[cfg(feature = "internals")]
 pub mod solver;
+#[cfg(not(feature = "internals"))]
+#[allow(dead_code, unreachable_pub)]
+pub(crate) mod solver;
 pub mod time;
 
 pub use error::{Error, Result};
+pub use solver::FillOrdering;
 pub use simulation::{Simulation, Simulation2, Simulation3};
 
 /// The types most programs need.
@@ -61,12 +73,14 @@ pub mod prelude {
     pub use crate::material::{LinearElastic, Material};
     pub use crate::mesh::generators::{annulus, cuboid, extrude, polygon, rectangle};
     pub use crate::mesh::Mesh;
-    pub use crate::recording::{NullRecorder, Recorder};
+    pub use crate::simulation::observe::{NullRecorder, Recorder};
+    pub use crate::contact::{ContactMethod, ContactSettings, Obstacle, ObstacleShape};
+    pub use crate::friction::FrictionLaw;
     pub use crate::simulation::{
-        Body, BodyId, Energies, MassKind, Settings, Simulation, Simulation2, Simulation3,
-        SimulationBuilder, StepReport,
+        Body, BodyId, Energies, MassKind, Model, Settings, Simulation, Simulation2, Simulation3,
+        SimulationBuilder, State, StepReport,
     };
-    pub use crate::solver::FillOrdering;
+    pub use crate::FillOrdering;
     pub use crate::time::{Beta, SpaceTimeScheme};
 }
 

@@ -198,12 +198,11 @@ where
             .sum::<f64>()
             / n as f64
     };
-    let m = softway::assembly::symmetric_dot;
     let momentum = |sim: &Simulation<D>| -> f64 {
         let ones: Vec<f64> = (0..sim.node_count() * D)
             .map(|i| if i % D == 0 { 1.0 } else { 0.0 })
             .collect();
-        m(sim.mass_matrix(), &ones, &sim.state().velocity)
+        sim.mass_matrix().dot(&ones, &sim.state().velocity)
     };
     let p0 = momentum(&sim);
     let scale = sim.body_mass(BodyId(0)) * V0;

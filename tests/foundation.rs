@@ -498,8 +498,8 @@ fn assembly_is_identical_with_one_and_two_threads() {
             .install(|| {
                 let s = build();
                 (
-                    s.stiffness_matrix().val().to_vec(),
-                    s.mass_matrix().val().to_vec(),
+                    s.stiffness_matrix().values().to_vec(),
+                    s.mass_matrix().values().to_vec(),
                 )
             })
     };

@@ -9,9 +9,10 @@
 use faer::sparse::{Argsort, Pair, SparseColMat, SymbolicSparseColMat};
 use nalgebra::{SMatrix, SVector};
 
-use crate::dim::{Dim, Kinematics, SpatialDim, Voigt, VoigtMatrix};
+use crate::dim::{Dim, Kinematics, SpatialDim, Voigt};
 use crate::element::{ElementKind, MAX_NODES};
 use crate::error::{Error, Result};
+use crate::material::{ConstitutiveLaw, Material, PointKinematics};
 
 /// Largest number of dofs of one cell.
 const MAX_DOFS: usize = MAX_NODES * 3;
@@ -179,66 +180,188 @@ impl Pattern {
 pub struct BodyIntegration {
     /// Kinematics of the body.
     pub kinematics: Kinematics,
-    /// Voigt tangent (condensed for plane stress).
-    pub tangent: VoigtMatrix,
-    /// Density [kg/m^3].
-    pub density: f64,
+    /// Constitutive law (its density gives the mass).
+    pub material: Material,
 }
 
-/// The stiffness and mass of one cell as lower-triangle values in canonical order.
+/// The fields the element kernel evaluates the law with.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct KernelFields<'a> {
+    /// Displacements at `t_alpha` (flat, D per node) [m]; `None`: zero strain.
+    pub displacement: Option<&'a [f64]>,
+    /// Velocities at `t_alpha` [m/s]; `None`: zero strain rate.
+    pub velocity: Option<&'a [f64]>,
+    /// Weights of `dsigma/deps` and `dsigma/deps_dot` in the tangent.
+    pub weights: (f64, f64),
+    /// The step [s] and alpha, passed to the law.
+    pub time_step: f64,
+    /// alpha.
+    pub alpha: f64,
+}
+
+/// What the element kernel writes for one cell; each output is optional.
+#[derive(Default)]
+struct CellOutput<'a> {
+    /// Tangent values (lower triangle, canonical order).
+    tangent: Option<&'a mut [f64]>,
+    /// Consistent mass values (lower triangle, canonical order).
+    mass: Option<&'a mut [f64]>,
+    /// Internal forces on the cell's dofs (`nodes * D`).
+    force: Option<&'a mut [f64]>,
+    /// Volume-averaged stress.
+    stress: Option<&'a mut Voigt>,
+    /// Stored energy [J].
+    energy: Option<&'a mut f64>,
+}
+
+/// The element kernel, the one place where a cell is integrated: at every quadrature point the
+/// law is evaluated on the strain and strain rate of `fields`, and the tangent
+/// `int B^T (w_0 dsigma/deps + w_1 dsigma/deps_dot) B`, the mass `int rho N N`, the internal
+/// forces `int B^T sigma`, the mean stress and the stored energy are accumulated as requested.
 #[allow(non_snake_case)]
-fn cell_matrices<const D: usize>(
+fn cell_kernel<const D: usize>(
     kind: ElementKind,
     cell: &[usize],
     x: &[SVector<f64, D>],
     body: &BodyIntegration,
-    k_out: &mut [f64],
-    m_out: &mut [f64],
+    fields: &KernelFields<'_>,
+    out: CellOutput<'_>,
 ) where
     Dim<D>: SpatialDim<D>,
 {
     let n = kind.nodes();
     let m = n * D;
+    let density = body.material.density();
+    let want_tangent = out.tangent.is_some();
+    let want_mass = out.mass.is_some();
     let mut K = [[0.0f64; MAX_DOFS]; MAX_DOFS];
     let mut M = [[0.0f64; MAX_NODES]; MAX_NODES];
+    let mut force = [0.0f64; MAX_DOFS];
+    let mut stress_sum = Voigt::zeros();
+    let mut stress_weight = 0.0;
+    let mut energy = 0.0;
     let mut b = [SMatrix::<f64, 6, D>::zeros(); MAX_NODES];
+    let node_value = |values: &[f64], node: usize| {
+        SVector::<f64, D>::from_column_slice(&values[node * D..node * D + D])
+    };
     for q in kind.quadrature() {
         let (shape, grads, position, det) = spatial_gradients::<D>(kind, cell, x, q.xi);
         let dv = q.weight * det * <Dim<D>>::measure_factor(body.kinematics, &position);
-        for a in 0..n {
+        let mut strain = Voigt::zeros();
+        let mut strain_rate = Voigt::zeros();
+        let mut spin = nalgebra::Matrix3::<f64>::zeros();
+        for (a, &node) in cell.iter().enumerate() {
             b[a] = <Dim<D>>::strain_operator(body.kinematics, shape[a], &grads[a], position[0]);
-        }
-        // K is symmetric: compute the blocks (bb, a) with bb >= a and mirror them after.
-        for a in 0..n {
-            let cb = body.tangent * b[a] * dv;
-            for bb in a..n {
-                let kab = b[bb].transpose() * cb; // (D x 6)(6 x D): block (bb, a)
+            if let Some(u) = fields.displacement {
+                strain += b[a] * node_value(u, node);
+            }
+            if let Some(v) = fields.velocity {
+                let va = node_value(v, node);
+                strain_rate += b[a] * va;
+                // The skew part of grad v (in-plane in 2D; the hoop direction has no spin).
                 for i in 0..D {
                     for j in 0..D {
-                        K[bb * D + i][a * D + j] += kab[(i, j)];
+                        spin[(i, j)] += 0.5 * (va[i] * grads[a][j] - va[j] * grads[a][i]);
                     }
                 }
-                M[a][bb] += body.density * shape[a] * shape[bb] * dv;
             }
         }
-    }
-    for a in 0..n {
-        for bb in a + 1..n {
-            M[bb][a] = M[a][bb];
-            for i in 0..D {
-                for j in 0..D {
-                    K[a * D + j][bb * D + i] = K[bb * D + i][a * D + j];
+        let response = body.material.evaluate(
+            &PointKinematics {
+                kinematics: body.kinematics,
+                strain,
+                strain_rate,
+                spin,
+                time_step: fields.time_step,
+                alpha: fields.alpha,
+            },
+            &[],
+            &mut [],
+        );
+        if want_tangent {
+            let (w0, w1) = fields.weights;
+            let tangent = if w1 == 0.0 {
+                response.stiffness * w0
+            } else {
+                response.stiffness * w0 + response.viscosity * w1
+            };
+            // K is symmetric for symmetric laws: compute the blocks (bb, a) with bb >= a and
+            // mirror them after.
+            for a in 0..n {
+                let cb = tangent * b[a] * dv;
+                for bb in a..n {
+                    let kab = b[bb].transpose() * cb; // (D x 6)(6 x D): block (bb, a)
+                    for i in 0..D {
+                        for j in 0..D {
+                            K[bb * D + i][a * D + j] += kab[(i, j)];
+                        }
+                    }
                 }
             }
         }
+        if want_mass {
+            for a in 0..n {
+                for bb in a..n {
+                    M[a][bb] += density * shape[a] * shape[bb] * dv;
+                }
+            }
+        }
+        if out.force.is_some() {
+            for a in 0..n {
+                let fa = b[a].transpose() * response.stress * dv;
+                for k in 0..D {
+                    force[a * D + k] += fa[k];
+                }
+            }
+        }
+        // The mean stress is weighted by the plane measure (without the axisymmetric 2 pi r).
+        let w = q.weight * det;
+        stress_sum += response.stress * w;
+        stress_weight += w;
+        energy += response.energy_density * dv;
     }
-    let mut slot = 0;
-    for_lower_pairs::<D>(cell, |p, q| {
-        k_out[slot] = K[p][q];
-        m_out[slot] = if p % D == q % D { M[p / D][q / D] } else { 0.0 };
-        slot += 1;
-    });
-    debug_assert_eq!(slot, m * (m + 1) / 2);
+    if let Some(k_out) = out.tangent {
+        for a in 0..n {
+            for bb in a + 1..n {
+                for i in 0..D {
+                    for j in 0..D {
+                        K[a * D + j][bb * D + i] = K[bb * D + i][a * D + j];
+                    }
+                }
+            }
+        }
+        let mut slot = 0;
+        for_lower_pairs::<D>(cell, |p, q| {
+            k_out[slot] = K[p][q];
+            slot += 1;
+        });
+        debug_assert_eq!(slot, m * (m + 1) / 2);
+    }
+    if let Some(m_out) = out.mass {
+        for a in 0..n {
+            for bb in a + 1..n {
+                M[bb][a] = M[a][bb];
+            }
+        }
+        let mut slot = 0;
+        for_lower_pairs::<D>(cell, |p, q| {
+            m_out[slot] = if p % D == q % D { M[p / D][q / D] } else { 0.0 };
+            slot += 1;
+        });
+    }
+    if let Some(f) = out.force {
+        f[..m].copy_from_slice(&force[..m]);
+    }
+    if let Some(s) = out.stress {
+        *s = if stress_weight > 0.0 {
+            stress_sum / stress_weight
+        } else {
+            stress_sum
+        };
+    }
+    if let Some(e) = out.energy {
+        *e = energy;
+    }
 }
 
 /// Shape values, spatial gradients, position and Jacobian determinant at a reference point.
@@ -307,7 +430,8 @@ where
     LinearMatrices { stiffness, mass }
 }
 
-/// Per-cell triplet values of the stiffness and the consistent mass.
+/// Per-cell triplet values of the stiffness (the tangent at zero strain and rate) and the
+/// consistent mass.
 pub fn cell_values<const D: usize>(
     table: &CellTable,
     pattern: &Pattern,
@@ -323,9 +447,18 @@ where
         let per = values_per_cell(seg.kind, D);
         let range = seg.first_value..seg.first_value + per * seg.cells.len();
         let body = &bodies[seg.body];
+        let fields = KernelFields {
+            weights: (1.0, 0.0),
+            ..Default::default()
+        };
         let work = |(c, (k, m)): (usize, (&mut [f64], &mut [f64]))| {
             let cell = table.cell(seg.cells.start + c, seg.kind);
-            cell_matrices::<D>(seg.kind, cell, x, body, k, m);
+            let out = CellOutput {
+                tangent: Some(k),
+                mass: Some(m),
+                ..Default::default()
+            };
+            cell_kernel::<D>(seg.kind, cell, x, body, &fields, out);
         };
         let (k_seg, m_seg) = (&mut k_vals[range.clone()], &mut m_vals[range]);
         #[cfg(feature = "parallel")]
@@ -390,8 +523,8 @@ pub fn symmetric_dot(a: &SparseColMat<usize, f64>, x: &[f64], y: &[f64]) -> f64 
     x.iter().zip(&ay).map(|(a, b)| a * b).sum()
 }
 
-/// The average Voigt stress of every cell for displacements `u` (flat, D per node), and the
-/// cell's body index.
+/// The average Voigt stress of every cell for displacements `u` (flat, D per node), bodies in
+/// order.
 pub fn cell_stresses<const D: usize>(
     table: &CellTable,
     x: &[SVector<f64, D>],
@@ -401,31 +534,19 @@ pub fn cell_stresses<const D: usize>(
 where
     Dim<D>: SpatialDim<D>,
 {
-    let mut out = Vec::with_capacity(table.len());
+    let fields = KernelFields {
+        displacement: Some(u),
+        ..Default::default()
+    };
+    let mut out = vec![Voigt::zeros(); table.len()];
     for seg in &table.segments {
-        let body = &bodies[seg.body];
         for c in seg.cells.clone() {
             let cell = table.cell(c, seg.kind);
-            let mut sum = Voigt::zeros();
-            let mut weight = 0.0;
-            for q in seg.kind.quadrature() {
-                let (shape, grads, position, det) = spatial_gradients::<D>(seg.kind, cell, x, q.xi);
-                let mut strain = Voigt::zeros();
-                for (a, &node) in cell.iter().enumerate() {
-                    let b = <Dim<D>>::strain_operator(
-                        body.kinematics,
-                        shape[a],
-                        &grads[a],
-                        position[0],
-                    );
-                    let ua = SVector::<f64, D>::from_column_slice(&u[node * D..node * D + D]);
-                    strain += b * ua;
-                }
-                let w = q.weight * det;
-                sum += body.tangent * strain * w;
-                weight += w;
-            }
-            out.push(if weight > 0.0 { sum / weight } else { sum });
+            let output = CellOutput {
+                stress: Some(&mut out[c]),
+                ..Default::default()
+            };
+            cell_kernel::<D>(seg.kind, cell, x, &bodies[seg.body], &fields, output);
         }
     }
     out
@@ -439,46 +560,78 @@ pub fn von_mises(s: &Voigt) -> f64 {
         .sqrt()
 }
 
-/// Internal forces `f_int = int B^T sigma(u)` integrated cell by cell from the stresses (the
-/// path nonlinear laws take; for linear laws it equals `K u`, which the tests check).
-pub fn internal_forces<const D: usize>(
+/// Internal forces `f_int = int B^T sigma` integrated cell by cell from the law's stresses at
+/// the displacements and velocities of `fields`, the tangent values of `fields.weights` (when
+/// `pattern` is given) and the stored energy. The path of laws that are not linear; for linear
+/// laws the forces equal `K u` (tested).
+pub fn internal_forces_and_tangent<const D: usize>(
     table: &CellTable,
+    pattern: Option<&Pattern>,
     x: &[SVector<f64, D>],
     bodies: &[BodyIntegration],
-    u: &[f64],
-) -> Vec<f64>
+    fields: &KernelFields<'_>,
+    ndof: usize,
+) -> (Vec<f64>, Option<Vec<f64>>, f64)
 where
     Dim<D>: SpatialDim<D>,
 {
-    let mut f = vec![0.0; u.len()];
+    let mut f = vec![0.0; ndof];
+    let mut tangent = pattern.map(|p| vec![0.0; p.triplets]);
+    let mut energy = 0.0;
     for seg in &table.segments {
+        let per = values_per_cell(seg.kind, D);
+        let m = seg.kind.nodes() * D;
         let body = &bodies[seg.body];
-        for c in seg.cells.clone() {
-            let cell = table.cell(c, seg.kind);
-            for q in seg.kind.quadrature() {
-                let (shape, grads, position, det) = spatial_gradients::<D>(seg.kind, cell, x, q.xi);
-                let dv = q.weight * det * <Dim<D>>::measure_factor(body.kinematics, &position);
-                let mut strain = Voigt::zeros();
-                let mut b = [SMatrix::<f64, 6, D>::zeros(); MAX_NODES];
-                for (a, &node) in cell.iter().enumerate() {
-                    b[a] = <Dim<D>>::strain_operator(
-                        body.kinematics,
-                        shape[a],
-                        &grads[a],
-                        position[0],
-                    );
-                    strain +=
-                        b[a] * SVector::<f64, D>::from_column_slice(&u[node * D..node * D + D]);
-                }
-                let stress = body.tangent * strain;
-                for (a, &node) in cell.iter().enumerate() {
-                    let fa = b[a].transpose() * stress * dv;
-                    for k in 0..D {
-                        f[node * D + k] += fa[k];
-                    }
+        let count = seg.cells.len();
+        // Per-cell forces and energies, computed in parallel, summed in a fixed order.
+        let mut local = vec![0.0; count * m];
+        let mut energies = vec![0.0; count];
+        let mut k_seg: Option<&mut [f64]> = tangent
+            .as_mut()
+            .map(|t| &mut t[seg.first_value..seg.first_value + per * count]);
+        let work = |c: usize, fl: &mut [f64], e: &mut f64, k: Option<&mut [f64]>| {
+            let cell = table.cell(seg.cells.start + c, seg.kind);
+            let out = CellOutput {
+                tangent: k,
+                force: Some(fl),
+                energy: Some(e),
+                ..Default::default()
+            };
+            cell_kernel::<D>(seg.kind, cell, x, body, fields, out);
+        };
+        #[cfg(feature = "parallel")]
+        {
+            use rayon::prelude::*;
+            match k_seg.as_deref_mut() {
+                Some(k) => local
+                    .par_chunks_mut(m)
+                    .zip(energies.par_iter_mut())
+                    .zip(k.par_chunks_mut(per))
+                    .enumerate()
+                    .for_each(|(c, ((fl, e), k))| work(c, fl, e, Some(k))),
+                None => local
+                    .par_chunks_mut(m)
+                    .zip(energies.par_iter_mut())
+                    .enumerate()
+                    .for_each(|(c, (fl, e))| work(c, fl, e, None)),
+            }
+        }
+        #[cfg(not(feature = "parallel"))]
+        {
+            let mut k_chunks = k_seg.as_deref_mut().map(|k| k.chunks_mut(per));
+            for (c, (fl, e)) in local.chunks_mut(m).zip(energies.iter_mut()).enumerate() {
+                work(c, fl, e, k_chunks.as_mut().and_then(|it| it.next()));
+            }
+        }
+        for (c, fl) in local.chunks(m).enumerate() {
+            let cell = table.cell(seg.cells.start + c, seg.kind);
+            for (a, &node) in cell.iter().enumerate() {
+                for k in 0..D {
+                    f[node * D + k] += fl[a * D + k];
                 }
             }
         }
+        energy += energies.iter().sum::<f64>();
     }
-    f
+    (f, tangent, energy)
 }

@@ -26,6 +26,7 @@ use std::collections::HashMap;
 use nalgebra::SVector;
 
 use crate::contact::obstacle::{Obstacle, ObstacleShape};
+use crate::contact::{ContactKey, MasterId};
 use crate::dim::{Dim, SpatialDim};
 pub use crate::geometry::Feature;
 use crate::geometry::{Aabb, BoxTree, GeometryDim};
@@ -226,12 +227,6 @@ pub struct ContactPair<const D: usize> {
     pub feature: Feature,
 }
 
-/// The key of one (slave, master) narrow-phase problem.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
-enum MasterKey {
-    Obstacle(usize),
-    Body(usize),
-}
 
 /// A facet obstacle's geometry in its frame at zero translation, with its hierarchy.
 struct ObstacleFacets<const D: usize>
@@ -365,7 +360,9 @@ where
     tree: Option<BoxTree<D>>,
     candidates: Vec<(usize, Master)>,
     obstacle_facets: Vec<Option<ObstacleFacets<D>>>,
-    previous: HashMap<(usize, MasterKey), usize>,
+    /// The master feature chosen last for each (slave, master): the narrow phase keeps it
+    /// while it stays within the hysteresis (see [`Detector::memory`]).
+    previous: HashMap<ContactKey, usize>,
 }
 
 /// Slaves per traversal of the hierarchy in the broad phase.
@@ -441,6 +438,20 @@ where
     /// then still answers exactly, only slower) a rebuild restores its quality.
     pub fn rebuild_hierarchy(&mut self) {
         self.tree = None;
+    }
+
+    /// The narrow phase's memory: the master facet (or obstacle feature) chosen last for each
+    /// (slave, master), sorted. It changes which facet a node is paired with, so it is part of
+    /// the simulation's state (restored when a step fails, stored in checkpoints).
+    pub fn memory(&self) -> Vec<(ContactKey, usize)> {
+        let mut m: Vec<(ContactKey, usize)> = self.previous.iter().map(|(k, v)| (*k, *v)).collect();
+        m.sort_unstable();
+        m
+    }
+
+    /// Replaces the narrow phase's memory (see [`Detector::memory`]).
+    pub fn set_memory(&mut self, memory: &[(ContactKey, usize)]) {
+        self.previous = memory.iter().copied().collect();
     }
 
     /// The swept box of every facet at the last update [m] (the broad phase's leaves).
@@ -599,7 +610,7 @@ where
             &self.candidates,
         );
         let activation = options.margin;
-        let results: Vec<(ContactPair<D>, MasterKey, usize, bool)> = map_chunks(
+        let results: Vec<(ContactPair<D>, MasterId, usize, bool)> = map_chunks(
             &groups,
             |_, gs| {
                 let mut out = Vec::new();
@@ -612,7 +623,7 @@ where
                             Master::Obstacle(k) => {
                                 i += 1;
                                 let Some(o) = obstacles.get(k) else { continue };
-                                let key = MasterKey::Obstacle(k);
+                                let key = MasterId::Obstacle(k);
                                 let prev = previous.get(&(node, key)).copied();
                                 if let Some((pair, choice)) = obstacle_pair(
                                     o,
@@ -637,7 +648,7 @@ where
                                 {
                                     j += 1;
                                 }
-                                let key = MasterKey::Body(body);
+                                let key = MasterId::Body(body);
                                 let prev = previous.get(&(node, key)).copied();
                                 // Only facets facing the node (opposed normals): always for
                                 // self-contact, between bodies with `facing`.

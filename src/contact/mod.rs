@@ -1,11 +1,28 @@
-//! Contact: rigid obstacles, detection (broad and narrow phase) and resolution (the soft way,
-//! implicit and explicit projection, augmented Lagrangian; Coulomb, Tresca and viscoplastic
-//! friction).
+//! Contact: rigid obstacles, detection (broad and narrow phase), the gap, and the methods that
+//! enforce the contact conditions (the soft way, implicit and explicit projection, augmented
+//! Lagrangian), one file each behind one interface ([`methods`]). Friction laws live in
+//! [`crate::friction`].
 
 pub mod detection;
+pub mod gap;
+pub(crate) mod methods;
 pub mod obstacle;
 pub mod resolution;
+
+use serde::{Deserialize, Serialize};
 
 pub use detection::{ContactPair, ContactSurface, DetectionOptions, Detector, Feature, Master};
 pub use obstacle::{Obstacle, ObstacleShape};
 pub use resolution::{ContactMethod, ContactSettings, FrictionLaw};
+
+/// The master side of a contact, as remembered between iterations and steps.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize, Deserialize)]
+pub enum MasterId {
+    /// A rigid obstacle (index).
+    Obstacle(usize),
+    /// A body's surface (body index).
+    Body(usize),
+}
+
+/// One contact: (global slave node, master).
+pub type ContactKey = (usize, MasterId);

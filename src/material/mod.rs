@@ -7,6 +7,10 @@
 
 use serde::{Deserialize, Serialize};
 
+mod law;
+
+pub use law::{ConstitutiveLaw, PointKinematics, PointResponse};
+
 use crate::dim::{Kinematics, VoigtMatrix};
 use crate::error::{Error, Result};
 
@@ -114,14 +118,6 @@ impl Material {
         }
     }
 
-    /// The constant Voigt tangent of a linear law, condensed for the kinematics; `None` for
-    /// a nonlinear law (assembled every Newton iteration instead).
-    pub fn linear_tangent(&self, kinematics: Kinematics) -> Option<VoigtMatrix> {
-        match self {
-            Material::LinearElastic(m) => Some(condense(m.elasticity(), kinematics)),
-        }
-    }
-
     /// Checks the parameters.
     pub fn validate(&self) -> Result<()> {
         match self {
@@ -133,6 +129,53 @@ impl Material {
     pub fn wave_speed(&self, kinematics: Kinematics) -> f64 {
         match self {
             Material::LinearElastic(m) => m.wave_speed(kinematics),
+        }
+    }
+}
+
+impl ConstitutiveLaw for LinearElastic {
+    fn is_linear(&self) -> bool {
+        true
+    }
+
+    fn evaluate(
+        &self,
+        point: &PointKinematics,
+        _history: &[f64],
+        _new_history: &mut [f64],
+    ) -> PointResponse {
+        let c = condense(self.elasticity(), point.kinematics);
+        let stress = c * point.strain;
+        PointResponse {
+            stress,
+            stiffness: c,
+            viscosity: VoigtMatrix::zeros(),
+            energy_density: 0.5 * stress.dot(&point.strain),
+        }
+    }
+}
+
+impl ConstitutiveLaw for Material {
+    fn history_len(&self) -> usize {
+        match self {
+            Material::LinearElastic(m) => m.history_len(),
+        }
+    }
+
+    fn is_linear(&self) -> bool {
+        match self {
+            Material::LinearElastic(m) => m.is_linear(),
+        }
+    }
+
+    fn evaluate(
+        &self,
+        point: &PointKinematics,
+        history: &[f64],
+        new_history: &mut [f64],
+    ) -> PointResponse {
+        match self {
+            Material::LinearElastic(m) => m.evaluate(point, history, new_history),
         }
     }
 }
@@ -153,8 +196,130 @@ pub fn condense(c: VoigtMatrix, kinematics: Kinematics) -> VoigtMatrix {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
+    use crate::dim::Voigt;
+    use nalgebra::Matrix3;
+
+    /// Checks a law's two tangents against central differences of its stress, in strain and
+    /// in strain rate, at `point`; returns the worst relative error.
+    pub(crate) fn tangent_error(law: &dyn ConstitutiveLaw, point: &PointKinematics) -> f64 {
+        let n = law.history_len();
+        let history = vec![0.1; n];
+        let mut scratch = vec![0.0; n];
+        let r = law.evaluate(point, &history, &mut scratch);
+        let scale = r.stiffness.amax().max(r.viscosity.amax()).max(1e-300);
+        let mut worst: f64 = 0.0;
+        for (analytic, by_rate) in [(r.stiffness, false), (r.viscosity, true)] {
+            for j in 0..6 {
+                let mut e = Voigt::zeros();
+                let size = if by_rate {
+                    point.strain_rate.amax()
+                } else {
+                    point.strain.amax()
+                };
+                e[j] = 1e-6 * size.max(1e-12);
+                let at = |sign: f64| {
+                    let mut p = *point;
+                    if by_rate {
+                        p.strain_rate += e * sign;
+                    } else {
+                        p.strain += e * sign;
+                    }
+                    law.evaluate(&p, &history, &mut scratch.clone()).stress
+                };
+                let fd = (at(1.0) - at(-1.0)) / (2.0 * e[j]);
+                worst = worst.max((fd - analytic.column(j)).amax() / scale);
+            }
+        }
+        worst
+    }
+
+    /// A nonlinear, rate-dependent law with history, for the interface's tests: a cubic
+    /// elastic part plus a power-law viscosity, `sigma = C eps + b (eps.eps) eps + eta
+    /// s^(m-1) eps_dot` with `s = sqrt(eps_dot.eps_dot + d^2)`; the history accumulates
+    /// `h s`.
+    pub(crate) struct TestLaw {
+        pub elastic: LinearElastic,
+        pub cubic: f64,
+        pub eta: f64,
+        pub exponent: f64,
+    }
+
+    impl ConstitutiveLaw for TestLaw {
+        fn history_len(&self) -> usize {
+            1
+        }
+
+        fn is_linear(&self) -> bool {
+            false
+        }
+
+        fn evaluate(
+            &self,
+            point: &PointKinematics,
+            history: &[f64],
+            new_history: &mut [f64],
+        ) -> PointResponse {
+            let c = condense(self.elastic.elasticity(), point.kinematics);
+            let (e, r) = (point.strain, point.strain_rate);
+            let ee = e.dot(&e);
+            let s = (r.dot(&r) + 1e-6).sqrt();
+            let m = self.exponent;
+            let stress = c * e + e * (self.cubic * ee) + r * (self.eta * s.powf(m - 1.0));
+            let stiffness = c
+                + VoigtMatrix::identity() * (self.cubic * ee)
+                + e * e.transpose() * (2.0 * self.cubic);
+            let viscosity = (VoigtMatrix::identity()
+                + r * r.transpose() * ((m - 1.0) / (s * s)))
+                * (self.eta * s.powf(m - 1.0));
+            new_history[0] = history[0] + point.time_step * s;
+            PointResponse {
+                stress,
+                stiffness,
+                viscosity,
+                energy_density: 0.5 * (c * e).dot(&e) + 0.25 * self.cubic * ee * ee,
+            }
+        }
+    }
+
+    fn sample_point(kinematics: Kinematics) -> PointKinematics {
+        PointKinematics {
+            kinematics,
+            strain: Voigt::new(1e-3, -4e-4, 2e-4, 3e-4, -1e-4, 5e-4),
+            strain_rate: Voigt::new(0.2, -0.1, 0.05, 0.3, 0.1, -0.2),
+            spin: Matrix3::zeros(),
+            time_step: 1e-3,
+            alpha: 0.75,
+        }
+    }
+
+    #[test]
+    fn law_tangents_match_finite_differences_of_their_stress() {
+        let elastic = LinearElastic::new(2e9, 0.3, 1000.0).unwrap();
+        let test = TestLaw {
+            elastic,
+            cubic: 1e13,
+            eta: 5e6,
+            exponent: 0.3,
+        };
+        for k in [
+            Kinematics::PlaneStrain,
+            Kinematics::PlaneStress,
+            Kinematics::Axisymmetric,
+            Kinematics::Solid,
+        ] {
+            let p = sample_point(k);
+            let e = tangent_error(&Material::LinearElastic(elastic), &p);
+            assert!(e < 1e-9, "linear elastic {k:?}: {e:e}");
+            let e = tangent_error(&test, &p);
+            assert!(e < 1e-6, "test law {k:?}: {e:e}");
+        }
+        // The history is advanced from the start-of-step value.
+        let mut out = [0.0];
+        test.evaluate(&sample_point(Kinematics::Solid), &[2.0], &mut out);
+        assert!(out[0] > 2.0);
+    }
 
     #[test]
     fn plane_stress_tangent_is_the_textbook_one() {

@@ -1,143 +1,107 @@
-//! `Simulation<D>`: bodies, their state, and the space-time velocity step.
+//! `Simulation<D>`: a model, its state, and the space-time velocity step.
+//!
+//! * [`model`]: what a simulation is made of (settings, bodies, obstacles, contact settings).
+//! * [`state`]: everything that affects the next steps' results.
+//! * `step`: the step as a pipeline (prediction, Newton with the contact method, end-of-step
+//!   correction, energy account, commit or restore), with `newton` (the iteration loop),
+//!   `contact_terms` (what each detected pair adds to the residual and tangent) and
+//!   `linear_solve` (the factorisations and preconditioned solves).
+//! * [`observe`]: the hooks a recorder receives.
 
 use faer::sparse::SparseColMat;
 use nalgebra::SVector;
 use serde::{Deserialize, Serialize};
 
+mod contact_terms;
+mod linear_solve;
+pub mod model;
+mod newton;
+pub mod observe;
+pub mod state;
 mod step;
+
+pub use model::{Body, Constraint, MassKind, Model, Settings};
+pub use state::{ContactMemory, FactorRecord, MasterId, State};
 
 use crate::assembly::{self, BodyIntegration, CellTable, LinearMatrices, Pattern};
 use crate::contact::{ContactSettings, ContactSurface, DetectionOptions, Detector, Obstacle};
 use crate::dim::{Dim, Kinematics, SpatialDim};
 use crate::error::{Error, Result};
-use crate::material::Material;
+use crate::material::ConstitutiveLaw;
 use crate::mesh::Mesh;
 use crate::solver::FillOrdering;
 use crate::time::{Beta, SpaceTimeScheme};
 
-/// Consistent or row-sum lumped mass matrix.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
-#[serde(rename_all = "snake_case")]
-pub enum MassKind {
-    /// `int rho N_a N_b` (the default).
-    #[default]
-    Consistent,
-    /// Row sums of the consistent matrix on the diagonal.
-    Lumped,
+/// A view of a symmetric sparse matrix, stored as its lower triangle in compressed sparse
+/// columns (row indices sorted within each column).
+#[derive(Debug, Clone, Copy)]
+pub struct SymmetricMatrix<'a> {
+    size: usize,
+    col_ptr: &'a [usize],
+    row_idx: &'a [usize],
+    values: &'a [f64],
 }
 
-/// Global parameters of a simulation. Units are SI.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct Settings<const D: usize> {
-    /// Time step h [s], > 0.
-    pub time_step: f64,
-    /// alpha and beta of the space-time scheme.
-    pub scheme: SpaceTimeScheme,
-    /// Gravity acceleration [m/s^2].
-    pub gravity: SVector<f64, D>,
-    /// 2D: plane strain, plane stress or axisymmetric; 3D: solid.
-    pub kinematics: Kinematics,
-    /// Largest number of Newton and contact iterations in one step.
-    pub max_iterations: usize,
-    /// Relative residual tolerance of Newton.
-    pub tolerance: f64,
-    /// Mass matrix kind.
-    pub mass: MassKind,
-    /// Fill-reducing ordering of the sparse Cholesky factorisation.
-    #[serde(default)]
-    pub ordering: FillOrdering,
-}
-
-impl<const D: usize> Default for Settings<D>
-where
-    Dim<D>: SpatialDim<D>,
-{
-    fn default() -> Self {
-        Settings {
-            time_step: 1e-3,
-            scheme: SpaceTimeScheme::default(),
-            gravity: SVector::zeros(),
-            kinematics: if <Dim<D>>::supports(Kinematics::Solid) {
-                Kinematics::Solid
-            } else {
-                Kinematics::PlaneStrain
-            },
-            max_iterations: 50,
-            tolerance: 1e-8,
-            mass: MassKind::Consistent,
-            ordering: FillOrdering::NestedDissection,
-        }
-    }
-}
-
-/// Prescribed velocity components on a set of nodes of one body.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct Constraint {
-    /// Node indices in the body's mesh.
-    pub nodes: Vec<usize>,
-    /// One entry per component; `None` leaves the component free [m/s].
-    pub velocity: Vec<Option<f64>>,
-}
-
-/// A deformable body: mesh, law, initial motion and constraints.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct Body<const D: usize> {
-    /// Unique name.
-    pub name: String,
-    /// Mesh in the reference configuration [m].
-    pub mesh: Mesh<D>,
-    /// Constitutive law.
-    pub material: Material,
-    /// Initial velocity of every node [m/s].
-    pub initial_velocity: SVector<f64, D>,
-    /// Initial angular velocity about the centre of mass [rad/s]: 1 component in 2D, 3 in 3D.
-    pub initial_angular_velocity: Vec<f64>,
-    /// Prescribed velocity components.
-    pub constraints: Vec<Constraint>,
-}
-
-impl<const D: usize> Body<D>
-where
-    Dim<D>: SpatialDim<D>,
-{
-    /// A body at rest without constraints.
-    pub fn new(name: impl Into<String>, mesh: Mesh<D>, material: Material) -> Self {
-        Body {
-            name: name.into(),
-            mesh,
-            material,
-            initial_velocity: SVector::zeros(),
-            initial_angular_velocity: vec![0.0; <Dim<D>>::ANGULAR],
-            constraints: Vec::new(),
+impl<'a> SymmetricMatrix<'a> {
+    fn of(m: &'a SparseColMat<usize, f64>) -> Self {
+        SymmetricMatrix {
+            size: m.nrows(),
+            col_ptr: m.symbolic().col_ptr(),
+            row_idx: m.symbolic().row_idx(),
+            values: m.val(),
         }
     }
 
-    /// Sets the initial velocity [m/s].
-    pub fn with_velocity(mut self, v: SVector<f64, D>) -> Self {
-        self.initial_velocity = v;
-        self
+    /// Number of rows (and columns).
+    pub fn size(&self) -> usize {
+        self.size
     }
 
-    /// Sets the initial angular velocity [rad/s] (1 component in 2D, 3 in 3D).
-    pub fn with_angular_velocity(mut self, omega: &[f64]) -> Self {
-        self.initial_angular_velocity = omega.to_vec();
-        self
+    /// Start of each column in [`SymmetricMatrix::row_indices`] (`size + 1` entries).
+    pub fn column_starts(&self) -> &'a [usize] {
+        self.col_ptr
     }
 
-    /// Adds a constraint on the nodes in `[min, max]`: `velocity[k] = Some(v)` prescribes
-    /// component k.
-    pub fn with_constraint_in_box(
-        mut self,
-        min: SVector<f64, D>,
-        max: SVector<f64, D>,
-        velocity: [Option<f64>; D],
-    ) -> Self {
-        let nodes = self.mesh.nodes_in_box(&min, &max);
-        self.constraints.push(Constraint {
-            nodes,
-            velocity: velocity.to_vec(),
-        });
-        self
+    /// Row index of each stored entry (lower triangle: row >= column).
+    pub fn row_indices(&self) -> &'a [usize] {
+        self.row_idx
+    }
+
+    /// Value of each stored entry.
+    pub fn values(&self) -> &'a [f64] {
+        self.values
+    }
+
+    /// `A x`.
+    pub fn mul(&self, x: &[f64]) -> Vec<f64> {
+        let mut y = vec![0.0; self.size];
+        for j in 0..self.size {
+            for k in self.col_ptr[j]..self.col_ptr[j + 1] {
+                let i = self.row_idx[k];
+                y[i] += self.values[k] * x[j];
+                if i != j {
+                    y[j] += self.values[k] * x[i];
+                }
+            }
+        }
+        y
+    }
+
+    /// `x^T A y`.
+    pub fn dot(&self, x: &[f64], y: &[f64]) -> f64 {
+        x.iter().zip(self.mul(y)).map(|(a, b)| a * b).sum()
+    }
+
+    /// The full dense matrix.
+    pub fn to_dense(&self) -> nalgebra::DMatrix<f64> {
+        let mut m = nalgebra::DMatrix::zeros(self.size, self.size);
+        for j in 0..self.size {
+            for k in self.col_ptr[j]..self.col_ptr[j + 1] {
+                m[(self.row_idx[k], j)] = self.values[k];
+                m[(j, self.row_idx[k])] = self.values[k];
+            }
+        }
+        m
     }
 }
 
@@ -196,53 +160,15 @@ pub struct StepReport {
     pub contacts: Vec<(usize, f64, f64)>,
 }
 
-/// The evolving state: one serialisable value.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct State {
-    /// Steps taken.
-    pub step: usize,
-    /// Current time [s].
-    pub time: f64,
-    /// Nodal displacements from the reference configuration [m], D per node, bodies in order.
-    pub displacement: Vec<f64>,
-    /// Nodal velocities [m/s].
-    pub velocity: Vec<f64>,
-    /// Cumulative external work [J].
-    pub external_work: f64,
-    /// Cumulative dissipation [J].
-    pub dissipated_energy: f64,
-    /// Constant external nodal forces set through the API [N].
-    pub loads: Vec<f64>,
-    /// Displacement of each obstacle since t = 0 [m], D per obstacle.
-    pub obstacle_translations: Vec<f64>,
-    /// Velocity of each obstacle [m/s], D per obstacle (changed between steps through the API).
-    pub obstacle_velocities: Vec<f64>,
-    /// Energy stored in soft-way penalties at the end of the last step [J].
-    pub contact_energy: f64,
-    /// Augmented Lagrangian multipliers carried from step to step: (slave node, master,
-    /// contact pressure [Pa]).
-    pub multipliers: Vec<(usize, MasterId, f64)>,
-    /// The normal forces that set the friction thresholds (slave node, master, force [N]),
-    /// carried from step to step as the start of the fixed point on the threshold.
-    pub friction_normals: Vec<(usize, MasterId, f64)>,
-}
-
-/// The master side of a contact, as remembered between iterations and steps.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize, Deserialize)]
-pub enum MasterId {
-    /// A rigid obstacle (index).
-    Obstacle(usize),
-    /// A body's surface (body index).
-    Body(usize),
-}
-
-/// A simulation of deformable bodies in D dimensions.
+/// A simulation of deformable bodies in D dimensions: a [`Model`], a [`State`], what is
+/// derived from the model once (node numbering, matrices, surfaces) and caches rebuilt on
+/// demand (factorisations, hierarchies).
 pub struct Simulation<const D: usize>
 where
     Dim<D>: SpatialDim<D>,
 {
-    settings: Settings<D>,
-    bodies: Vec<Body<D>>,
+    model: Model<D>,
+    state: State,
     node_offsets: Vec<usize>,
     reference: Vec<SVector<f64, D>>,
     table: CellTable,
@@ -251,20 +177,27 @@ where
     matrices: LinearMatrices,
     prescribed: Vec<Option<f64>>,
     gravity_force: Vec<f64>,
-    reference_energy: f64,
-    state: State,
-    system: Option<step::IterationSystem>,
     warnings: Vec<String>,
-    obstacles: Vec<Obstacle<D>>,
-    contact: ContactSettings,
-    detector: Option<Detector<D>>,
-    /// The last contact factorisations (newest first), kept as CG preconditioners.
-    contact_solvers: Vec<step::ContactFactor>,
-    /// Whether contact matrices are factored in single precision (as CG preconditioners);
-    /// switched off for good the first time that does not converge.
-    single_precision_contact: bool,
     boundary_faces: Vec<Vec<usize>>,
     nodal_mass: Vec<f64>,
+    /// Whether internal forces and the tangent are assembled every Newton iteration (a law
+    /// that is not linear; tests switch it on for linear ones to compare the two paths).
+    general_path: bool,
+    caches: Caches<D>,
+}
+
+/// What can be rebuilt from the model and the state at any time: dropping it changes no
+/// result, only the time of the next step.
+struct Caches<const D: usize>
+where
+    Dim<D>: SpatialDim<D>,
+{
+    /// The factored contact-free iteration matrix of the last step size.
+    system: Option<linear_solve::IterationSystem>,
+    /// The factorisations named by [`ContactMemory::factors`], by id.
+    contact_factors: Vec<linear_solve::ContactFactor>,
+    /// Detection (its hierarchy and candidates; its memory is synchronised with the state).
+    detector: Option<Detector<D>>,
 }
 
 /// 2D simulation.
@@ -421,7 +354,23 @@ where
         obstacles: Vec<Obstacle<D>>,
         contact: ContactSettings,
     ) -> Result<Self> {
-        validate_settings(&settings)?;
+        Self::from_model(Model {
+            settings,
+            bodies,
+            obstacles,
+            contact,
+        })
+    }
+
+    /// Validates a model, assembles its matrices and sets the initial state.
+    pub fn from_model(model: Model<D>) -> Result<Self> {
+        let Model {
+            settings,
+            bodies,
+            obstacles,
+            contact,
+        } = &model;
+        validate_settings(settings)?;
         if bodies.is_empty() {
             return Err(invalid("bodies", "none", "at least one body"));
         }
@@ -460,17 +409,9 @@ where
             for block in &body.mesh.blocks {
                 table.push_block(b, block.kind, &block.connectivity, offset);
             }
-            let tangent = body
-                .material
-                .linear_tangent(settings.kinematics)
-                .ok_or_else(|| Error::NotAvailable {
-                    feature: "nonlinear materials".into(),
-                    detail: "only linear_elastic is implemented".into(),
-                })?;
             integration.push(BodyIntegration {
                 kinematics: settings.kinematics,
-                tangent,
-                density: body.material.density(),
+                material: body.material,
             });
         }
         let nodes = reference.len();
@@ -567,7 +508,7 @@ where
         }
         let mut obstacle_translations = Vec::with_capacity(obstacles.len() * D);
         let mut obstacle_velocities = Vec::with_capacity(obstacles.len() * D);
-        for o in &obstacles {
+        for o in obstacles {
             obstacle_translations.extend(o.translation.iter());
             obstacle_velocities.extend(o.velocity.iter());
         }
@@ -624,10 +565,14 @@ where
             contact_energy: 0.0,
             multipliers: Vec::new(),
             friction_normals: Vec::new(),
+            reference_energy: 0.0,
+            material_history: Vec::new(),
+            contact_memory: ContactMemory::default(),
         };
+        let general_path = bodies.iter().any(|b| !b.material.is_linear());
         let mut sim = Simulation {
-            settings,
-            bodies,
+            model,
+            state,
             node_offsets,
             reference,
             table,
@@ -636,35 +581,89 @@ where
             matrices,
             prescribed,
             gravity_force,
-            reference_energy: 0.0,
-            state,
-            system: None,
             warnings,
-            obstacles,
-            contact,
-            detector,
-            contact_solvers: Vec::new(),
-            single_precision_contact: true,
             boundary_faces,
             nodal_mass,
+            general_path,
+            caches: Caches {
+                system: None,
+                contact_factors: Vec::new(),
+                detector,
+            },
         };
-        sim.reference_energy = sim.energies().total();
+        sim.state.reference_energy = sim.energies().total();
         Ok(sim)
+    }
+
+    /// Rebuilds a simulation from its model and a state taken from it (or from a checkpoint):
+    /// the next steps are bit for bit those the original would have taken.
+    pub fn from_parts(model: Model<D>, state: State) -> Result<Self> {
+        let mut sim = Self::from_model(model)?;
+        sim.set_state(state)?;
+        Ok(sim)
+    }
+
+    /// Replaces the state (for example one returned by [`Simulation::state`] earlier): the
+    /// simulation continues from it exactly. The sizes must match the model.
+    pub fn set_state(&mut self, state: State) -> Result<()> {
+        let ndof = self.reference.len() * D;
+        let checks = [
+            ("displacement", state.displacement.len(), ndof),
+            ("velocity", state.velocity.len(), ndof),
+            ("loads", state.loads.len(), ndof),
+            (
+                "obstacle_translations",
+                state.obstacle_translations.len(),
+                self.model.obstacles.len() * D,
+            ),
+            (
+                "obstacle_velocities",
+                state.obstacle_velocities.len(),
+                self.model.obstacles.len() * D,
+            ),
+        ];
+        for (name, found, expected) in checks {
+            if found != expected {
+                return Err(invalid(
+                    &format!("state.{name}"),
+                    format!("{found} values"),
+                    &format!("{expected} values (the model's)"),
+                ));
+            }
+        }
+        self.state = state;
+        Ok(())
+    }
+
+    /// Changes the Newton limits between steps: the largest number of iterations of one step
+    /// and the relative residual tolerance (validated like the settings).
+    pub fn set_solver_limits(&mut self, max_iterations: usize, tolerance: f64) -> Result<()> {
+        let mut settings = self.model.settings.clone();
+        settings.max_iterations = max_iterations;
+        settings.tolerance = tolerance;
+        validate_settings(&settings)?;
+        self.model.settings = settings;
+        Ok(())
+    }
+
+    /// The model (settings, bodies, obstacles, contact settings).
+    pub fn model(&self) -> &Model<D> {
+        &self.model
     }
 
     /// The settings.
     pub fn settings(&self) -> &Settings<D> {
-        &self.settings
+        &self.model.settings
     }
 
     /// The bodies.
     pub fn bodies(&self) -> &[Body<D>] {
-        &self.bodies
+        &self.model.bodies
     }
 
     /// The handle of the body called `name`.
     pub fn body_id(&self, name: &str) -> Option<BodyId> {
-        self.bodies.iter().position(|b| b.name == name).map(BodyId)
+        self.model.bodies.iter().position(|b| b.name == name).map(BodyId)
     }
 
     /// The state (time, displacements, velocities, works).
@@ -684,8 +683,8 @@ where
 
     /// The global index of a body's node.
     pub fn global_node(&self, body: BodyId, node: usize) -> Result<usize> {
-        let b = self.bodies.get(body.0).ok_or_else(|| {
-            Error::InvalidHandle(format!("body {} of {}", body.0, self.bodies.len()))
+        let b = self.model.bodies.get(body.0).ok_or_else(|| {
+            Error::InvalidHandle(format!("body {} of {}", body.0, self.model.bodies.len()))
         })?;
         if node >= b.mesh.nodes.len() {
             return Err(Error::InvalidHandle(format!(
@@ -700,7 +699,7 @@ where
     /// Range of global nodes of a body.
     pub fn body_nodes(&self, body: BodyId) -> std::ops::Range<usize> {
         let start = self.node_offsets[body.0];
-        start..start + self.bodies[body.0].mesh.nodes.len()
+        start..start + self.model.bodies[body.0].mesh.nodes.len()
     }
 
     fn node_vector(values: &[f64], node: usize) -> SVector<f64, D> {
@@ -744,7 +743,7 @@ where
             self.state.velocity[dof] = self.prescribed[dof].unwrap_or(v[k]);
         }
         if self.state.step == 0 {
-            self.reference_energy = self.energies().total();
+            self.state.reference_energy = self.energies().total();
         }
         Ok(())
     }
@@ -759,7 +758,7 @@ where
 
     /// The rigid obstacles, at their position at t = 0 (see [`State::obstacle_translations`]).
     pub fn obstacles(&self) -> &[Obstacle<D>] {
-        &self.obstacles
+        &self.model.obstacles
     }
 
     /// Current position of obstacle `k`: its displacement since t = 0 [m].
@@ -770,10 +769,10 @@ where
     /// Sets the velocity of obstacle `k` [m/s] from the next step on (kinematic obstacles
     /// driven by a host).
     pub fn set_obstacle_velocity(&mut self, k: usize, v: SVector<f64, D>) -> Result<()> {
-        if k >= self.obstacles.len() {
+        if k >= self.model.obstacles.len() {
             return Err(Error::InvalidHandle(format!(
                 "obstacle {k} of {}",
-                self.obstacles.len()
+                self.model.obstacles.len()
             )));
         }
         self.state.obstacle_velocities[k * D..k * D + D].copy_from_slice(v.as_slice());
@@ -782,28 +781,23 @@ where
 
     /// The contact settings.
     pub fn contact_settings(&self) -> &ContactSettings {
-        &self.contact
+        &self.model.contact
     }
 
     /// The contact detector, when contact is possible (obstacles, several bodies or
     /// self-contact).
     pub fn detector(&self) -> Option<&Detector<D>> {
-        self.detector.as_ref()
+        self.caches.detector.as_ref()
     }
 
-    /// The sparsity pattern of the global matrices.
-    pub fn pattern(&self) -> &Pattern {
-        &self.pattern
+    /// The mass matrix [kg].
+    pub fn mass_matrix(&self) -> SymmetricMatrix<'_> {
+        SymmetricMatrix::of(&self.matrices.mass)
     }
 
-    /// The mass matrix (lower triangle) [kg].
-    pub fn mass_matrix(&self) -> &SparseColMat<usize, f64> {
-        &self.matrices.mass
-    }
-
-    /// The stiffness matrix (lower triangle) [N/m].
-    pub fn stiffness_matrix(&self) -> &SparseColMat<usize, f64> {
-        &self.matrices.stiffness
+    /// The stiffness matrix on the reference configuration [N/m].
+    pub fn stiffness_matrix(&self) -> SymmetricMatrix<'_> {
+        SymmetricMatrix::of(&self.matrices.stiffness)
     }
 
     /// Total mass of a body [kg].
@@ -821,7 +815,23 @@ where
         let s = &self.state;
         Energies {
             kinetic: 0.5 * assembly::symmetric_dot(&self.matrices.mass, &s.velocity, &s.velocity),
-            internal: 0.5 * self.strain_energy_product(&s.displacement),
+            internal: if self.general_path {
+                let fields = assembly::KernelFields {
+                    displacement: Some(&s.displacement),
+                    ..Default::default()
+                };
+                assembly::internal_forces_and_tangent::<D>(
+                    &self.table,
+                    None,
+                    &self.reference,
+                    &self.integration,
+                    &fields,
+                    s.displacement.len(),
+                )
+                .2
+            } else {
+                0.5 * self.strain_energy_product(&s.displacement)
+            },
             contact: s.contact_energy,
             external_work: s.external_work,
             dissipated: s.dissipated_energy,
@@ -832,7 +842,7 @@ where
     /// translations, and removing them avoids the cancellation of large equal terms.
     fn strain_energy_product(&self, u: &[f64]) -> f64 {
         let mut w = u.to_vec();
-        for b in 0..self.bodies.len() {
+        for b in 0..self.model.bodies.len() {
             let range = self.body_nodes(BodyId(b));
             let count = range.len().max(1) as f64;
             for k in 0..D {
@@ -847,12 +857,12 @@ where
 
     /// The energy that stability is measured against: E(0) + |external work| + dissipated.
     pub fn energy_reference(&self) -> f64 {
-        self.reference_energy + self.state.external_work.abs() + self.state.dissipated_energy
+        self.state.reference_energy + self.state.external_work.abs() + self.state.dissipated_energy
     }
 
     /// Energy at t = 0 [J].
     pub fn initial_energy(&self) -> f64 {
-        self.reference_energy
+        self.state.reference_energy
     }
 
     /// Average Voigt stress of every cell, bodies in order [Pa].
@@ -868,7 +878,24 @@ where
     /// Internal forces of displacements `u` (flat, D per node) integrated from the element
     /// stresses [N].
     pub fn internal_forces(&self, u: &[f64]) -> Vec<f64> {
-        assembly::internal_forces::<D>(&self.table, &self.reference, &self.integration, u)
+        let fields = assembly::KernelFields {
+            displacement: Some(u),
+            ..Default::default()
+        };
+        assembly::internal_forces_and_tangent::<D>(
+            &self.table,
+            None,
+            &self.reference,
+            &self.integration,
+            &fields,
+            u.len(),
+        )
+        .0
+    }
+
+    /// Whether Newton assembles the internal forces and the tangent every iteration.
+    fn uses_general_path(&self) -> bool {
+        self.general_path
     }
 
     /// Reference (undeformed) node positions, bodies in order [m].

@@ -115,13 +115,28 @@ impl SparseCholesky {
         })
     }
 
+    /// A factorisation object with the same symbolic analysis (shared, not recomputed) and
+    /// no numeric factor yet.
+    pub fn unfactored_copy(&self) -> Self {
+        SparseCholesky {
+            workspace: Mutex::new(MemBuffer::new(
+                self.symbolic.solve_in_place_scratch::<f64>(1, Par::Seq),
+            )),
+            symbolic: Arc::clone(&self.symbolic),
+            values: Values::None,
+            pattern: self.pattern.clone(),
+            ordering: self.ordering,
+            block: self.block,
+        }
+    }
+
     /// Number of stored entries of the factor L (its memory is 8 bytes per entry).
     pub fn factor_entries(&self) -> usize {
         self.symbolic.len_val()
     }
 
     /// Re-analyses (same ordering) when `matrix` has another pattern than the analysed one.
-    fn analyse_if_new_pattern(&mut self, matrix: &SparseColMat<usize, f64>) -> Result<()> {
+    pub fn reanalyse_if_new_pattern(&mut self, matrix: &SparseColMat<usize, f64>) -> Result<()> {
         let same = self.pattern.0 == matrix.symbolic().col_ptr()
             && self.pattern.1 == matrix.symbolic().row_idx();
         if !same {
@@ -133,7 +148,7 @@ impl SparseCholesky {
     /// Like [`SparseCholesky::factor`], re-analysing first (same ordering) when `matrix` has
     /// another pattern than the analysed one (contact between bodies adds couplings).
     pub fn factor_any(&mut self, matrix: &SparseColMat<usize, f64>, step: usize) -> Result<()> {
-        self.analyse_if_new_pattern(matrix)?;
+        self.reanalyse_if_new_pattern(matrix)?;
         self.factor(matrix, step)
     }
 
@@ -143,7 +158,7 @@ impl SparseCholesky {
         matrix: &SparseColMat<usize, f64>,
         step: usize,
     ) -> Result<()> {
-        self.analyse_if_new_pattern(matrix)?;
+        self.reanalyse_if_new_pattern(matrix)?;
         self.factor_single(matrix, step)
     }
 

@@ -70,15 +70,6 @@ pub fn vec_d<const D: usize>(v: [f64; 3]) -> SVector<f64, D> {
 }
 
 /// The full dense matrix of a symmetric sparse matrix stored as its lower triangle.
-pub fn dense(a: &faer::sparse::SparseColMat<usize, f64>) -> DMatrix<f64> {
-    let n = a.nrows();
-    let mut m = DMatrix::zeros(n, n);
-    let (cp, ri, v) = (a.symbolic().col_ptr(), a.symbolic().row_idx(), a.val());
-    for j in 0..n {
-        for k in cp[j]..cp[j + 1] {
-            m[(ri[k], j)] = v[k];
-            m[(j, ri[k])] = v[k];
-        }
-    }
-    m
+pub fn dense(a: softway::simulation::SymmetricMatrix<'_>) -> DMatrix<f64> {
+    a.to_dense()
 }

@@ -1,0 +1,213 @@
+//! The contact gap, computed in one place: the signed distance of a slave point to its
+//! master at the predicted end of the step (eq 22), the master nodes' weights, and its
+//! derivatives (gradient and Hessian) that the contact tangents need.
+//!
+//! Detection picks the master (the closest facet or the obstacle feature, with hysteresis);
+//! the methods take their gap from here.
+
+use nalgebra::{SMatrix, SVector};
+
+use crate::contact::detection::{ContactPair, Feature};
+use crate::contact::obstacle::{Obstacle, ObstacleShape};
+use crate::dim::{Dim, SpatialDim};
+
+/// The gap of a point to the plane of a facet.
+#[derive(Debug, Clone, Copy)]
+pub struct FacetGap<const D: usize> {
+    /// Signed gap `(x - y_0) . n` [m]; negative is penetration.
+    pub gap: f64,
+    /// The facet's outward unit normal.
+    pub normal: SVector<f64, D>,
+    /// Barycentric weights (unclamped) of the projection of the point on the facet's plane.
+    pub weights: [f64; D],
+    /// The projection of the point on the facet's plane [m].
+    pub point: SVector<f64, D>,
+}
+
+/// The gap of `x` to the plane of the facet with vertices `y`; `None` for a degenerate facet.
+pub fn facet_gap<const D: usize>(x: &SVector<f64, D>, y: &[SVector<f64, D>; D]) -> Option<FacetGap<D>>
+where
+    Dim<D>: SpatialDim<D>,
+{
+    let (measure, n) = <Dim<D>>::facet_measure_normal(y);
+    if measure <= 0.0 {
+        return None;
+    }
+    let weights = plane_weights::<D>(x, y, &n);
+    let mut point = SVector::<f64, D>::zeros();
+    for i in 0..D {
+        point += y[i] * weights[i];
+    }
+    Some(FacetGap {
+        gap: (x - y[0]).dot(&n),
+        normal: n,
+        weights,
+        point,
+    })
+}
+
+/// The Hessian of the signed distance to a facet's plane (slave and facet nodes, `D + 1`
+/// nodes), by central differences of its analytic gradient; the gradient is `n` for the slave
+/// and `-N_i n` for the facet nodes (the envelope theorem on the closest point).
+pub fn facet_gap_hessian<const D: usize>(
+    slave: &SVector<f64, D>,
+    facet: &[SVector<f64, D>; D],
+) -> Vec<Vec<f64>>
+where
+    Dim<D>: SpatialDim<D>,
+{
+    let m = (D + 1) * D;
+    let mut coords: Vec<f64> = slave.iter().copied().collect();
+    for v in facet {
+        coords.extend(v.iter().copied());
+    }
+    let size = facet
+        .iter()
+        .map(|v| (v - facet[0]).norm())
+        .fold(0.0, f64::max)
+        .max(1e-300);
+    let eps = 1e-6 * size;
+    let mut hessian = vec![vec![0.0; m]; m];
+    for j in 0..m {
+        let mut plus = coords.clone();
+        let mut minus = coords.clone();
+        plus[j] += eps;
+        minus[j] -= eps;
+        let (gp, gm) = (
+            facet_gap_gradient::<D>(&plus),
+            facet_gap_gradient::<D>(&minus),
+        );
+        if let (Some(gp), Some(gm)) = (gp, gm) {
+            for i in 0..m {
+                hessian[i][j] = (gp.1[i] - gm.1[i]) / (2.0 * eps);
+            }
+        }
+    }
+    // Symmetrise the finite-difference noise away.
+    for i in 0..m {
+        for j in 0..i {
+            let s = 0.5 * (hessian[i][j] + hessian[j][i]);
+            hessian[i][j] = s;
+            hessian[j][i] = s;
+        }
+    }
+    hessian
+}
+
+/// Gap to a facet's plane and its gradient for flat coordinates `(x_s, y_1, .., y_D)`.
+pub fn facet_gap_gradient<const D: usize>(coords: &[f64]) -> Option<(f64, Vec<f64>)>
+where
+    Dim<D>: SpatialDim<D>,
+{
+    let x = SVector::<f64, D>::from_column_slice(&coords[..D]);
+    let y: [SVector<f64, D>; D] = std::array::from_fn(|i| {
+        SVector::<f64, D>::from_column_slice(&coords[(i + 1) * D..(i + 2) * D])
+    });
+    let f = facet_gap::<D>(&x, &y)?;
+    let mut grad = Vec::with_capacity((D + 1) * D);
+    grad.extend(f.normal.iter().copied());
+    for w in f.weights {
+        grad.extend((f.normal * -w).iter().copied());
+    }
+    Some((f.gap, grad))
+}
+
+/// Barycentric weights (unclamped) of the projection of `x` on the plane of facet `y`.
+pub fn plane_weights<const D: usize>(
+    x: &SVector<f64, D>,
+    y: &[SVector<f64, D>; D],
+    n: &SVector<f64, D>,
+) -> [f64; D] {
+    let r = x - y[0] - n * (x - y[0]).dot(n);
+    let mut w = [0.0; D];
+    if D == 2 {
+        let t = y[1] - y[0];
+        let s = r.dot(&t) / t.norm_squared();
+        w[0] = 1.0 - s;
+        w[1] = s;
+    } else {
+        let (e1, e2) = (y[1] - y[0], y[2] - y[0]);
+        let (a, b, c) = (e1.dot(&e1), e1.dot(&e2), e2.dot(&e2));
+        let (r1, r2) = (r.dot(&e1), r.dot(&e2));
+        let det = a * c - b * b;
+        let s = (c * r1 - b * r2) / det;
+        let t = (a * r2 - b * r1) / det;
+        w[0] = 1.0 - s - t;
+        w[1] = s;
+        w[2] = t;
+    }
+    w
+}
+
+/// Hessian of the distance to an analytic obstacle at a slave point `x` paired as `pair`
+/// (zero on flat faces).
+pub fn obstacle_gap_hessian<const D: usize>(
+    obstacle: &Obstacle<D>,
+    pair: &ContactPair<D>,
+    x: &SVector<f64, D>,
+) -> SMatrix<f64, D, D> {
+    let n = pair.normal;
+    let projector = SMatrix::<f64, D, D>::identity() - n * n.transpose();
+    let distance = (x - pair.point).norm();
+    match (&obstacle.shape, pair.feature) {
+        (ObstacleShape::Ball { center, .. }, _) => {
+            let d = (x - center - obstacle.translation).norm();
+            if d > 0.0 {
+                projector / d
+            } else {
+                SMatrix::zeros()
+            }
+        }
+        (ObstacleShape::Box { .. }, Feature::Vertex(_)) if distance > 0.0 => projector / distance,
+        (ObstacleShape::Box { .. }, Feature::Edge(k)) if distance > 0.0 && D == 3 => {
+            let mut e = SVector::<f64, D>::zeros();
+            e[k] = 1.0;
+            (projector - e * e.transpose()) / distance
+        }
+        (ObstacleShape::Facets { .. }, Feature::Vertex(_)) if distance > 0.0 => {
+            projector / distance
+        }
+        // Faces are flat; the edges of a triangle-mesh obstacle are not curved in their own
+        // direction and their small transverse term is dropped (named in the book).
+        _ => SMatrix::zeros(),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use nalgebra::Vector2;
+
+    #[test]
+    fn facet_gap_gradient_and_hessian() {
+        // A 2D segment from (0,0) to (2,0): gap = y, weights linear in x.
+        let coords = [0.5, -0.1, 0.0, 0.0, 2.0, 0.0];
+        let (g, grad) = facet_gap_gradient::<2>(&coords).unwrap();
+        // The body is on the left of (0,0) -> (2,0), so n = (0, -1) and the point is outside.
+        assert!((g - 0.1).abs() < 1e-15);
+        // dg/dx_s = n; dg/dy_1 = -0.75 n; dg/dy_2 = -0.25 n.
+        let (_, n) =
+            <Dim<2>>::facet_measure_normal(&[Vector2::new(0.0, 0.0), Vector2::new(2.0, 0.0)]);
+        assert!((grad[1] - n.y).abs() < 1e-15);
+        assert!((grad[3] + 0.75 * n.y).abs() < 1e-12);
+        assert!((grad[5] + 0.25 * n.y).abs() < 1e-12);
+        // The gradient itself against central differences of the gap.
+        let eps = 1e-7;
+        for j in 0..6 {
+            let (mut p, mut m) = (coords, coords);
+            p[j] += eps;
+            m[j] -= eps;
+            let fd = (facet_gap_gradient::<2>(&p).unwrap().0
+                - facet_gap_gradient::<2>(&m).unwrap().0)
+                / (2.0 * eps);
+            assert!((fd - grad[j]).abs() < 1e-7, "{j}: {fd} vs {}", grad[j]);
+        }
+        let h = facet_gap_hessian::<2>(
+            &Vector2::new(0.5, -0.1),
+            &[Vector2::new(0.0, 0.0), Vector2::new(2.0, 0.0)],
+        );
+        assert!(h.iter().flatten().all(|v| v.is_finite()));
+        // Moving the slave along the segment does not change dg/dx_s: that row block is zero.
+        assert!(h[0][0].abs() < 1e-6 && h[1][1].abs() < 1e-6);
+    }
+}

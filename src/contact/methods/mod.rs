@@ -1,0 +1,198 @@
+//! The four contact methods of the paper's Table 1 behind one interface, [`Method`]: each
+//! says what its normal law adds to the residual and tangent of a Newton iteration, how it
+//! updates its outer variables (multipliers, active set) between Newton solves, and what it
+//! corrects at the end of the step. The step ([`crate::simulation`]) drives them all the same
+//! way; friction ([`crate::friction`]) acts on top of any of them.
+//!
+//! * [`soft_way`]: penalty on the eq 22 gap (eq 27).
+//! * [`augmented_lagrangian`]: Uzawa updates of multipliers around soft-way solves (eq 28-30).
+//! * [`implicit_projection`]: an active set with zero relative normal end velocity, positions
+//!   projected at the end of the step.
+//! * [`explicit_projection`]: contact ignored in the step, penetrating points projected at its
+//!   end (category 1 baseline).
+
+use std::collections::{BTreeMap, BTreeSet, HashSet};
+
+use nalgebra::SVector;
+
+use super::{ContactKey, ContactMethod, ContactSettings};
+
+pub(crate) mod augmented_lagrangian;
+pub(crate) mod explicit_projection;
+pub(crate) mod implicit_projection;
+pub(crate) mod projection;
+pub(crate) mod soft_way;
+
+/// The variables a method updates between Newton solves within one step.
+#[derive(Debug, Clone, Default)]
+pub(crate) struct OuterVariables {
+    /// Augmented Lagrangian: contact pressures [Pa] (carried from step to step); implicit
+    /// projection: the normal forces [N] of the last solve on active points.
+    pub multipliers: BTreeMap<ContactKey, f64>,
+    /// Implicit projection: the active set.
+    pub active: BTreeSet<ContactKey>,
+    /// Implicit projection: every active set seen in this step (a repeat is a cycle).
+    pub seen_sets: HashSet<Vec<ContactKey>>,
+    /// Whether [`Method::start`] ran in this step.
+    pub started: bool,
+}
+
+/// What the normal law of one pair needs in an iteration.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct NormalInput {
+    /// The contact.
+    pub key: ContactKey,
+    /// The eq 22 gap [m].
+    pub gap: f64,
+    /// The relative normal end velocity [m/s].
+    pub normal_velocity: f64,
+    /// The slave's contact area [m^2].
+    pub area: f64,
+    /// The step [s].
+    pub time_step: f64,
+    /// The largest diagonal entry of the slave's rows of the iteration matrix.
+    pub diagonal: f64,
+}
+
+/// A pair's normal force and the stiffness of its law.
+#[derive(Debug, Clone, Copy, Default)]
+pub(crate) struct NormalLaw {
+    /// Compressive normal force on the slave [N].
+    pub force: f64,
+    /// `d force / d (n . w1)`, w1 the relative end velocity [N s/m].
+    pub stiffness: f64,
+    /// Contact pressure [Pa] where the force comes from a penalty on the gap (the
+    /// geometric tangent's factor), else 0.
+    pub pressure: f64,
+}
+
+/// One pair's forces in an iteration, as the outer updates and the records see them.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct PairOutcome<const D: usize> {
+    /// The contact.
+    pub key: ContactKey,
+    /// The master's outward normal.
+    pub normal: SVector<f64, D>,
+    /// The eq 22 gap [m].
+    pub gap: f64,
+    /// Normal force on the slave [N] (negative: tension, implicit projection).
+    pub normal_force: f64,
+    /// Friction force on the slave [N].
+    pub friction: SVector<f64, D>,
+    /// Mean tangential relative velocity over the step [m/s].
+    pub slip: SVector<f64, D>,
+    /// The master point [m].
+    pub master_point: SVector<f64, D>,
+    /// The obstacle, for obstacle masters.
+    pub obstacle: Option<usize>,
+    /// The relative normal end velocity [m/s].
+    pub normal_velocity: f64,
+}
+
+/// The normal state of one pair after a converged Newton solve.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct PairStatus {
+    /// The contact.
+    pub key: ContactKey,
+    /// The eq 22 gap [m].
+    pub gap: f64,
+    /// Normal force on the slave [N] (negative: tension).
+    pub normal_force: f64,
+    /// The relative normal end velocity [m/s].
+    pub normal_velocity: f64,
+}
+
+impl<const D: usize> From<&PairOutcome<D>> for PairStatus {
+    fn from(p: &PairOutcome<D>) -> Self {
+        PairStatus {
+            key: p.key,
+            gap: p.gap,
+            normal_force: p.normal_force,
+            normal_velocity: p.normal_velocity,
+        }
+    }
+}
+
+/// The result of an outer update.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum OuterUpdate {
+    /// The method's conditions hold: the step may end.
+    Converged,
+    /// The outer variables changed: solve again.
+    Again,
+    /// The active set came back to one seen before in this step.
+    Cycle,
+}
+
+/// Which points the end-of-step projection moves onto their master.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum EndProjection {
+    /// No projection.
+    None,
+    /// The points of the active set (their normal end velocity is already zero).
+    Active,
+    /// Every penetrating point, whose approaching normal velocity is removed too.
+    PenetratingWithVelocity,
+}
+
+/// A contact method: its normal law, its outer update and its end-of-step correction.
+pub(crate) trait Method: Sync {
+    /// Whether contact enters the Newton iterations (explicit projection: no).
+    fn in_newton(&self) -> bool {
+        true
+    }
+
+    /// Called once per step with the contacts predicted to penetrate at the first iteration
+    /// (end velocity = start velocity).
+    fn start(&self, _vars: &mut OuterVariables, _penetrating: &[ContactKey]) {}
+
+    /// The normal law of one pair.
+    fn normal_law(
+        &self,
+        input: &NormalInput,
+        vars: &OuterVariables,
+        settings: &ContactSettings,
+    ) -> NormalLaw;
+
+    /// Whether the gap stores penalty energy `zeta g^2 / 2` per area.
+    fn stores_energy(&self) -> bool {
+        false
+    }
+
+    /// Updates the outer variables after Newton converged for them.
+    fn outer_update(
+        &self,
+        _pairs: &[PairStatus],
+        _vars: &mut OuterVariables,
+        _settings: &ContactSettings,
+        _time_step: f64,
+        _log: &mut dyn FnMut(String),
+    ) -> OuterUpdate {
+        OuterUpdate::Converged
+    }
+
+    /// Whether a point counts as active in the records.
+    fn is_active(&self, key: &ContactKey, vars: &OuterVariables) -> bool {
+        vars.active.contains(key)
+    }
+
+    /// The end-of-step correction.
+    fn end_projection(&self) -> EndProjection {
+        EndProjection::None
+    }
+
+    /// Whether the multipliers are carried to the next step.
+    fn carries_multipliers(&self) -> bool {
+        false
+    }
+}
+
+/// The implementation of a method.
+pub(crate) fn method(m: ContactMethod) -> &'static dyn Method {
+    match m {
+        ContactMethod::SoftWay => &soft_way::SoftWay,
+        ContactMethod::AugmentedLagrangian => &augmented_lagrangian::AugmentedLagrangian,
+        ContactMethod::ImplicitProjection => &implicit_projection::ImplicitProjection,
+        ContactMethod::ExplicitProjection => &explicit_projection::ExplicitProjection,
+    }
+}

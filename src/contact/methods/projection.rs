@@ -1,0 +1,113 @@
+//! The end-of-step projection shared by implicit and explicit projection: a point is moved
+//! onto its master, the correction shared between the two sides as the paper says ("related to
+//! the dynamic conditions of the solids S1 and S2"): the common point on the segment P1 Q1 is
+//! the mass-weighted one, and both sides move to it; a rigid master takes none of it.
+
+use std::collections::BTreeSet;
+
+use nalgebra::SVector;
+
+use super::EndProjection;
+use crate::contact::{ContactKey, ContactPair, Master, MasterId};
+
+/// What the projection reads.
+pub(crate) struct ProjectionContext<'a, const D: usize> {
+    /// Which points move.
+    pub rule: EndProjection,
+    /// The active set (implicit projection).
+    pub active: &'a BTreeSet<ContactKey>,
+    /// The body of every surface facet.
+    pub facet_body: &'a [usize],
+    /// The nodes of every surface facet.
+    pub facets: &'a [[usize; D]],
+    /// Lumped nodal masses [kg].
+    pub nodal_mass: &'a [f64],
+    /// Prescribed velocity components (they do not move).
+    pub prescribed: &'a [Option<f64>],
+    /// Obstacle velocities [m/s].
+    pub obstacle_velocity: &'a dyn Fn(usize) -> SVector<f64, D>,
+    /// The step [s].
+    pub time_step: f64,
+}
+
+/// Projects the points of `pairs` (found in the stored end configuration) that the rule names:
+/// moves `u1` (and for [`EndProjection::PenetratingWithVelocity`] removes the approaching
+/// normal relative velocity from `v1`, adding the impulse to `contact_forces` as a force).
+pub(crate) fn project<const D: usize>(
+    ctx: &ProjectionContext<'_, D>,
+    pairs: &[ContactPair<D>],
+    u1: &mut [f64],
+    v1: &mut [f64],
+    contact_forces: &mut [Vec<f64>],
+) {
+    let h = ctx.time_step;
+    for p in pairs {
+        let key = match p.master {
+            Master::Obstacle(k) => (p.slave, MasterId::Obstacle(k)),
+            Master::Facet(f) => (p.slave, MasterId::Body(ctx.facet_body[f])),
+        };
+        let project = match ctx.rule {
+            EndProjection::None => false,
+            EndProjection::Active => ctx.active.contains(&key),
+            EndProjection::PenetratingWithVelocity => p.gap < 0.0,
+        };
+        if !project {
+            continue;
+        }
+        let s = p.slave;
+        // Master nodes (weights) and the master's velocity.
+        let (masters, master_velocity): (Vec<(usize, f64)>, SVector<f64, D>) = match p.master {
+            Master::Obstacle(k) => (Vec::new(), (ctx.obstacle_velocity)(k)),
+            Master::Facet(f) => {
+                let w = p.barycentric;
+                let list: Vec<(usize, f64)> = (0..D).map(|i| (ctx.facets[f][i], w[i])).collect();
+                let mut v = SVector::<f64, D>::zeros();
+                for &(n, c) in &list {
+                    v += SVector::<f64, D>::from_column_slice(&v1[n * D..n * D + D]) * c;
+                }
+                (list, v)
+            }
+        };
+        let ms = ctx.nodal_mass[s];
+        let mm: f64 = masters.iter().map(|&(n, c)| c * ctx.nodal_mass[n]).sum();
+        // The slave takes the part mm / (ms + mm) of the correction, the master the rest.
+        let slave_share = if masters.is_empty() || ms + mm <= 0.0 {
+            1.0
+        } else {
+            mm / (ms + mm)
+        };
+        let correction = -p.normal * p.gap;
+        let sum_w2: f64 = masters.iter().map(|&(_, c)| c * c).sum::<f64>().max(1e-300);
+        // Moves the slave by its share of `delta` and the master point by the rest, spread
+        // over the facet nodes by their weights; prescribed dofs stay.
+        let prescribed = ctx.prescribed;
+        let share = |values: &mut [f64], delta: &SVector<f64, D>| {
+            for k in 0..D {
+                if prescribed[s * D + k].is_none() {
+                    values[s * D + k] += slave_share * delta[k];
+                }
+                for &(n, c) in &masters {
+                    if prescribed[n * D + k].is_none() {
+                        values[n * D + k] -= (1.0 - slave_share) * delta[k] * c / sum_w2;
+                    }
+                }
+            }
+        };
+        share(u1, &correction);
+        if ctx.rule == EndProjection::PenetratingWithVelocity {
+            let vs = SVector::<f64, D>::from_column_slice(&v1[s * D..s * D + D]);
+            let vn = p.normal.dot(&(vs - master_velocity));
+            if vn < 0.0 {
+                let dv = -p.normal * vn;
+                share(v1, &dv);
+                if let Master::Obstacle(k) = p.master {
+                    // The impulse over the step, as a force.
+                    let f = dv * (ms * slave_share / h);
+                    for i in 0..D {
+                        contact_forces[k][i] += f[i];
+                    }
+                }
+            }
+        }
+    }
+}

@@ -1,0 +1,333 @@
+//! What contact adds to one Newton iteration: for every detected pair, its geometry (from
+//! [`crate::contact::gap`]), the method's normal law ([`crate::contact::methods`]), the friction
+//! law ([`crate::friction`]), and from them the nodal forces, the tangent entries and the
+//! records the observers see.
+
+use std::collections::BTreeMap;
+
+use nalgebra::{SMatrix, SVector};
+
+use super::observe::ContactRecord;
+use super::Simulation;
+use crate::contact::gap::{facet_gap, facet_gap_hessian, obstacle_gap_hessian};
+use crate::contact::methods::{Method, NormalInput, OuterVariables, PairOutcome};
+use crate::contact::{ContactKey, ContactPair, FrictionLaw, Master, MasterId, Obstacle};
+use crate::dim::{Dim, Kinematics, SpatialDim};
+
+/// Everything contact adds to one iteration.
+#[derive(Default)]
+pub(super) struct ContactTerms<const D: usize> {
+    /// Contact forces on the nodes [N] (flat, D per node).
+    pub forces: Vec<f64>,
+    /// Tangent entries `d(-forces)/dv1` (lower triangle).
+    pub entries: Vec<(usize, usize, f64)>,
+    /// The geometric part of the tangent (variation of the normal and of the closest point):
+    /// kept while the iteration matrix stays positive definite.
+    pub geometric: Vec<(usize, usize, f64)>,
+    /// Every pair's forces.
+    pub pairs: Vec<PairOutcome<D>>,
+    /// Penalty energy stored in the gaps [J].
+    pub energy: f64,
+    /// Friction dissipation rate [W].
+    pub dissipation_rate: f64,
+}
+
+/// What the contact terms of an iteration read besides the pairs.
+pub(super) struct TermsInput<'a, const D: usize> {
+    /// The method.
+    pub method: &'a dyn Method,
+    /// The obstacles at t1.
+    pub obstacles_t1: &'a [Obstacle<D>],
+    /// Predicted end positions (eq 22) [m].
+    pub x_gap: &'a [SVector<f64, D>],
+    /// Start and end velocities [m/s].
+    pub v0: &'a [f64],
+    /// End velocities [m/s].
+    pub v1: &'a [f64],
+    /// The step [s].
+    pub time_step: f64,
+    /// Each boundary node's face shares (area, outward normal).
+    pub areas: &'a [Vec<(f64, SVector<f64, D>)>],
+    /// The method's outer variables.
+    pub vars: &'a OuterVariables,
+    /// The Coulomb thresholds (normal forces) of the friction fixed point [N].
+    pub friction_normals: &'a BTreeMap<ContactKey, f64>,
+    /// The diagonal of the contact-free iteration matrix.
+    pub diagonal: &'a [f64],
+}
+
+fn block_entries<const D: usize>(
+    entries: &mut Vec<(usize, usize, f64)>,
+    a: usize,
+    b: usize,
+    block: &SMatrix<f64, D, D>,
+) {
+    for i in 0..D {
+        for j in 0..D {
+            let (r, c) = (a * D + i, b * D + j);
+            if r >= c && block[(i, j)] != 0.0 {
+                entries.push((r, c, block[(i, j)]));
+            }
+        }
+    }
+}
+
+impl<const D: usize> Simulation<D>
+where
+    Dim<D>: SpatialDim<D>,
+{
+    pub(super) fn obstacle_velocity(&self, k: usize) -> SVector<f64, D> {
+        SVector::from_column_slice(&self.state.obstacle_velocities[k * D..k * D + D])
+    }
+
+    /// The friction law of a contact (the obstacle's own, or the default).
+    pub(super) fn friction_law(&self, obstacle: Option<usize>) -> FrictionLaw {
+        obstacle
+            .and_then(|k| self.model.obstacles[k].friction)
+            .unwrap_or(self.model.contact.friction)
+    }
+
+    /// Each boundary node's shares of the surface [m^2] at positions `x`, with the outward
+    /// normal of the face each share comes from (length x unit thickness in plane kinematics,
+    /// `2 pi r` x length in axisymmetric ones).
+    pub(super) fn tributary_areas(&self, x: &[SVector<f64, D>]) -> Vec<Vec<(f64, SVector<f64, D>)>> {
+        let mut shares: Vec<Vec<(f64, SVector<f64, D>)>> = vec![Vec::new(); x.len()];
+        let axisymmetric = self.model.settings.kinematics == Kinematics::Axisymmetric;
+        for face in &self.boundary_faces {
+            let first: [SVector<f64, D>; D] = std::array::from_fn(|i| x[face[i]]);
+            let (_, normal) = <Dim<D>>::facet_measure_normal(&first);
+            if D == 2 {
+                let (a, b) = (face[0], face[1]);
+                let length = (x[b] - x[a]).norm();
+                if axisymmetric {
+                    let (ra, rb) = (x[a][0].max(0.0), x[b][0].max(0.0));
+                    let tau = 2.0 * std::f64::consts::PI * length / 6.0;
+                    shares[a].push((tau * (2.0 * ra + rb), normal));
+                    shares[b].push((tau * (ra + 2.0 * rb), normal));
+                } else {
+                    shares[a].push((0.5 * length, normal));
+                    shares[b].push((0.5 * length, normal));
+                }
+            } else {
+                let tri = |p: usize, q: usize, r: usize| {
+                    let v = [x[p], x[q], x[r]].map(|v| nalgebra::Vector3::new(v[0], v[1], v[2]));
+                    0.5 * (v[1] - v[0]).cross(&(v[2] - v[0])).norm()
+                };
+                let total = if face.len() == 4 {
+                    tri(face[0], face[1], face[2]) + tri(face[0], face[2], face[3])
+                } else {
+                    tri(face[0], face[1], face[2])
+                };
+                for &n in face {
+                    shares[n].push((total / face.len() as f64, normal));
+                }
+            }
+        }
+        shares
+    }
+
+    /// The contact area of a slave node against a master of normal `n`: its face shares
+    /// projected on the contact plane (faces turned away from the master do not count, so a
+    /// corner node of a flat face carries its half of that face only).
+    fn contact_area(shares: &[(f64, SVector<f64, D>)], n: &SVector<f64, D>) -> f64 {
+        shares.iter().map(|(a, nf)| a * (-nf.dot(n)).max(0.0)).sum()
+    }
+
+    /// The key of a detected pair.
+    pub(super) fn contact_key(&self, pair: &ContactPair<D>) -> ContactKey {
+        match pair.master {
+            Master::Obstacle(k) => (pair.slave, MasterId::Obstacle(k)),
+            Master::Facet(f) => {
+                let surface = self.caches.detector.as_ref().expect("contact").surface();
+                (pair.slave, MasterId::Body(surface.facet_body()[f]))
+            }
+        }
+    }
+
+    /// Forces, tangent entries and outcomes of every detected pair.
+    pub(super) fn contact_terms(
+        &self,
+        pairs: &[ContactPair<D>],
+        input: &TermsInput<'_, D>,
+    ) -> ContactTerms<D> {
+        let h = input.time_step;
+        let x_gap = input.x_gap;
+        let ndof = input.v1.len();
+        let mut terms = ContactTerms {
+            forces: vec![0.0; ndof],
+            ..Default::default()
+        };
+        let node_v =
+            |v: &[f64], n: usize| SVector::<f64, D>::from_column_slice(&v[n * D..n * D + D]);
+        let Some(detector) = &self.caches.detector else {
+            return terms;
+        };
+        let surface = detector.surface();
+        for pair in pairs {
+            let s = pair.slave;
+
+            // Master nodes with their weights, the normal and the gap.
+            let (key, nodes, normal, gap, master_velocity, obstacle, master_point) =
+                match pair.master {
+                    Master::Obstacle(k) => (
+                        (s, MasterId::Obstacle(k)),
+                        vec![(s, 1.0)],
+                        pair.normal,
+                        pair.gap,
+                        self.obstacle_velocity(k),
+                        Some(k),
+                        pair.point,
+                    ),
+                    Master::Facet(f) => {
+                        let facet = surface.facets()[f];
+                        let y: [SVector<f64, D>; D] = std::array::from_fn(|i| x_gap[facet[i]]);
+                        let Some(g) = facet_gap::<D>(&x_gap[s], &y) else {
+                            continue;
+                        };
+                        let mut nodes = vec![(s, 1.0)];
+                        for i in 0..D {
+                            nodes.push((facet[i], -g.weights[i]));
+                        }
+                        (
+                            (s, MasterId::Body(surface.facet_body()[f])),
+                            nodes,
+                            g.normal,
+                            g.gap,
+                            SVector::zeros(),
+                            None,
+                            g.point,
+                        )
+                    }
+                };
+            let relative = |v: &[f64]| -> SVector<f64, D> {
+                let mut r = -master_velocity;
+                for &(n, c) in &nodes {
+                    r += node_v(v, n) * c;
+                }
+                r
+            };
+            let area = Self::contact_area(&input.areas[s], &normal);
+            let (r0, r1) = (relative(input.v0), relative(input.v1));
+            let projector = SMatrix::<f64, D, D>::identity() - normal * normal.transpose();
+            let slip = projector * (r0 + r1) * 0.5;
+            let normal_velocity = normal.dot(&r1);
+
+            // Normal force and the stiffness of its law.
+            let law_input = NormalInput {
+                key,
+                gap,
+                normal_velocity,
+                area,
+                time_step: h,
+                diagonal: (0..D).map(|k| input.diagonal[s * D + k]).fold(0.0, f64::max),
+            };
+            let normal_law =
+                input
+                    .method
+                    .normal_law(&law_input, input.vars, &self.model.contact);
+            let (normal_force, normal_stiffness, pressure) =
+                (normal_law.force, normal_law.stiffness, normal_law.pressure);
+            // Friction takes the normal force of the previous pass (a fixed point on the
+            // friction threshold: a sequence of Tresca problems, each with a symmetric tangent).
+            let law = self.friction_law(obstacle);
+            // Only Coulomb's threshold depends on the force; the other laws need the status.
+            let threshold = match law {
+                FrictionLaw::Coulomb { .. } => {
+                    input.friction_normals.get(&key).copied().unwrap_or(0.0)
+                }
+                _ => normal_force,
+            };
+            let (friction, friction_tangent) =
+                if threshold > 0.0 && law != FrictionLaw::Frictionless {
+                    law.force(threshold, area, &slip, &normal)
+                } else {
+                    (SVector::zeros(), SMatrix::zeros())
+                };
+            let force = normal * normal_force + friction;
+            for &(n, c) in &nodes {
+                for k in 0..D {
+                    terms.forces[n * D + k] += c * force[k];
+                }
+            }
+            // Tangent: d(-force)/dv1 on every pair of involved nodes.
+            if normal_stiffness > 0.0 || law != FrictionLaw::Frictionless {
+                let nn = normal * normal.transpose();
+                let geometric: Option<Vec<Vec<f64>>> = if pressure > 0.0 {
+                    match pair.master {
+                        Master::Facet(f) => {
+                            let facet = surface.facets()[f];
+                            let y: [SVector<f64, D>; D] = std::array::from_fn(|i| x_gap[facet[i]]);
+                            Some(facet_gap_hessian::<D>(&x_gap[s], &y))
+                        }
+                        Master::Obstacle(k) => {
+                            let hs =
+                                obstacle_gap_hessian(&input.obstacles_t1[k], pair, &x_gap[s]);
+                            Some(
+                                (0..D)
+                                    .map(|i| (0..D).map(|j| hs[(i, j)]).collect())
+                                    .collect(),
+                            )
+                        }
+                    }
+                } else {
+                    None
+                };
+                for (a, &(na, ca)) in nodes.iter().enumerate() {
+                    for (b, &(nb, cb)) in nodes.iter().enumerate() {
+                        let block =
+                            nn * (normal_stiffness * ca * cb) - friction_tangent * (0.5 * ca * cb);
+                        block_entries(&mut terms.entries, na, nb, &block);
+                        if let Some(hess) = &geometric {
+                            let g = SMatrix::<f64, D, D>::from_fn(|i, j| {
+                                -0.5 * h * pressure * area * hess[a * D + i][b * D + j]
+                            });
+                            block_entries(&mut terms.geometric, na, nb, &g);
+                        }
+                    }
+                }
+            }
+            if input.method.stores_energy() && gap < 0.0 {
+                terms.energy += 0.5 * self.model.contact.penalty * area * gap * gap;
+            }
+            terms.dissipation_rate += -friction.dot(&slip);
+            terms.pairs.push(PairOutcome {
+                key,
+                normal,
+                gap,
+                normal_force,
+                friction,
+                slip,
+                master_point,
+                obstacle,
+                normal_velocity,
+            });
+        }
+        terms
+    }
+
+    /// The observers' view of an iteration's pairs.
+    pub(super) fn records(
+        &self,
+        terms: &ContactTerms<D>,
+        x_gap: &[SVector<f64, D>],
+        method: &dyn Method,
+        vars: &OuterVariables,
+    ) -> Vec<ContactRecord<D>> {
+        terms
+            .pairs
+            .iter()
+            .map(|p| ContactRecord {
+                slave: p.key.0,
+                obstacle: p.obstacle,
+                position: x_gap[p.key.0],
+                master_point: p.master_point,
+                normal: p.normal,
+                gap: p.gap,
+                normal_force: p.normal_force,
+                friction_force: p.friction,
+                slip_velocity: p.slip,
+                active: p.normal_force > 0.0 || method.is_active(&p.key, vars),
+            })
+            .collect()
+    }
+}

@@ -1,0 +1,551 @@
+//! The linear solves of Newton: the factored contact-free iteration matrix `A0 = M/h +
+//! (alpha^2 h / 2) K` (once per step size), and with contact `A0 + K_c` solved by conjugate
+//! gradients preconditioned with the nearest factored matrix, or factored anew.
+//!
+//! The policy: CG stops at a tenth of the Newton tolerance; it is preconditioned by `A0` or by
+//! one of the last [`CONTACT_FACTORS_KEPT`] contact factorisations, whichever differs from
+//! `A0 + K_c` in the fewest unknowns by more than half their diagonal (points entering or
+//! leaving contact: a low-rank difference CG resolves in about one iteration each). More than
+//! [`PCG_LOW_RANK`] such unknowns, or CG out of iterations, and the contact matrix is factored
+//! (single precision refined by CG; double precision when that fails, then for good). Which
+//! factorisations exist is part of the state ([`ContactMemory`](super::ContactMemory)): they
+//! change the round-off of a step, so a restored or resumed simulation uses the same ones.
+
+use faer::sparse::{SparseColMat, Triplet};
+
+use super::state::FactorRecord;
+use super::Simulation;
+use crate::assembly;
+use crate::dim::{Dim, Kinematics, SpatialDim};
+use crate::error::{Error, Result};
+use crate::solver::SparseCholesky;
+
+/// Conjugate-gradient iterations allowed on top of the number of strongly changed unknowns
+/// (see [`strong_changes`]) before the contact matrix is factored anew.
+const PCG_SLACK: usize = 6;
+
+/// At most this many unknowns whose contact stiffness changed strongly since the nearest
+/// factorisation are left to conjugate gradients; more, and the contact matrix is factored.
+/// A factorisation costs about 20 to 25 preconditioner solves (Hex8 box, nested dissection,
+/// single precision) and then serves the following iterations and steps; CG needs about one
+/// iteration per changed unknown.
+const PCG_LOW_RANK: usize = 12;
+
+/// A change of the contact diagonal above this fraction of the factored diagonal counts as a
+/// strong (low-rank) change: CG resolves each such unknown in about one iteration.
+const STRONG_CHANGE: f64 = 0.5;
+
+/// Contact factorisations kept as preconditioners. Two: Newton often returns to the contact
+/// set of the previous iteration or step after one excursion (a node released by the predictor
+/// and caught again), and each factorisation costs a dozen or more solves.
+const CONTACT_FACTORS_KEPT: usize = 2;
+
+/// Conjugate-gradient iterations allowed to refine a solve with a fresh single-precision
+/// factorisation before it is redone in double precision.
+const SINGLE_PRECISION_REFINEMENT: usize = 10;
+
+/// The factored contact-free iteration matrix for one step size.
+pub(super) struct IterationSystem {
+    pub(super) time_step: f64,
+    pub(super) matrix: SparseColMat<usize, f64>,
+    pub(super) diagonal: Vec<f64>,
+    pub(super) cholesky: SparseCholesky,
+}
+
+/// The factorisation of a contact iteration matrix `A0 + K_c` named by a [`FactorRecord`].
+pub(super) struct ContactFactor {
+    id: u64,
+    cholesky: SparseCholesky,
+    /// The diagonal of the factored `K_c` (free unknowns), per unknown.
+    diagonal: Vec<f64>,
+}
+
+impl ContactFactor {
+    #[cfg(test)]
+    pub(super) fn is_single_precision(&self) -> bool {
+        self.cholesky.is_single_precision()
+    }
+}
+
+/// Number of unknowns whose contact stiffness `now` differs from the factored `then` by more
+/// than [`STRONG_CHANGE`] of the factored diagonal `base + then`.
+fn strong_changes(base: &[f64], then: Option<&[f64]>, now: &[f64]) -> usize {
+    (0..now.len())
+        .filter(|&i| {
+            let old = then.map_or(0.0, |t| t[i]);
+            (now[i] - old).abs() > STRONG_CHANGE * (base[i] + old).abs()
+        })
+        .count()
+}
+
+/// Preconditioned conjugate gradients on `apply(x) = b` until the residual norm is at most
+/// `target` (never below 1e-10 |b|): the solution and its residual
+/// `b - apply(x)`; `None` if that takes more than `max` iterations.
+fn conjugate_gradients(
+    apply: &dyn Fn(&[f64]) -> Vec<f64>,
+    precondition: &dyn Fn(&mut [f64]),
+    b: &[f64],
+    target: f64,
+    max: usize,
+) -> Option<(Vec<f64>, Vec<f64>)> {
+    let n = b.len();
+    let dot = |a: &[f64], b: &[f64]| a.iter().zip(b).map(|(x, y)| x * y).sum::<f64>();
+    let b_norm = dot(b, b).sqrt();
+    if b_norm == 0.0 {
+        return Some((vec![0.0; n], vec![0.0; n]));
+    }
+    let target = target.max(1e-10 * b_norm);
+    let mut x = b.to_vec();
+    precondition(&mut x);
+    let ax = apply(&x);
+    let mut r: Vec<f64> = b.iter().zip(&ax).map(|(b, a)| b - a).collect();
+    let mut z = r.clone();
+    precondition(&mut z);
+    let mut p = z.clone();
+    let mut rz = dot(&r, &z);
+    for _ in 0..max {
+        if dot(&r, &r).sqrt() <= target {
+            return Some((x, r));
+        }
+        let ap = apply(&p);
+        let alpha = rz / dot(&p, &ap);
+        if !alpha.is_finite() || alpha <= 0.0 {
+            return None;
+        }
+        for i in 0..n {
+            x[i] += alpha * p[i];
+            r[i] -= alpha * ap[i];
+        }
+        z.copy_from_slice(&r);
+        precondition(&mut z);
+        let rz_next = dot(&r, &z);
+        let beta = rz_next / rz;
+        rz = rz_next;
+        for i in 0..n {
+            p[i] = z[i] + beta * p[i];
+        }
+    }
+    (dot(&r, &r).sqrt() <= target).then_some((x, r))
+}
+
+impl<const D: usize> Simulation<D>
+where
+    Dim<D>: SpatialDim<D>,
+{
+    /// Factors the contact-free iteration matrix for step size `h` unless it already is.
+    pub(super) fn ensure_system(&mut self, h: f64) -> Result<()> {
+        if self.caches.system.as_ref().is_some_and(|s| s.time_step == h) {
+            return Ok(());
+        }
+        let (_, d1) = self.model.settings.scheme.displacement_weights();
+        let matrix = self.iteration_matrix(h, d1);
+        let mut cholesky = match self.caches.system.take() {
+            Some(s) => s.cholesky,
+            None => SparseCholesky::analyse_with(&matrix, self.model.settings.ordering, D)?,
+        };
+        cholesky.factor(&matrix, self.state.step + 1)?;
+        let diagonal = diagonal_of(&matrix);
+        self.caches.system = Some(IterationSystem {
+            time_step: h,
+            matrix,
+            diagonal,
+            cholesky,
+        });
+        Ok(())
+    }
+
+    /// `M/h + (alpha^2 h / 2) K` with prescribed rows and columns replaced by the identity
+    /// (scaled to the mean diagonal, for conditioning).
+    fn iteration_matrix(&self, h: f64, d1: f64) -> SparseColMat<usize, f64> {
+        let mut a = self.matrices.mass.clone();
+        let (m_vals, k_vals) = (self.matrices.mass.val(), self.matrices.stiffness.val());
+        let col_ptr = a.symbolic().col_ptr().to_vec();
+        let row_idx = a.symbolic().row_idx().to_vec();
+        let vals = a.val_mut();
+        for i in 0..vals.len() {
+            vals[i] = m_vals[i] / h + d1 * h * k_vals[i];
+        }
+        let mut diag_sum = 0.0;
+        for j in 0..col_ptr.len() - 1 {
+            for k in col_ptr[j]..col_ptr[j + 1] {
+                if row_idx[k] == j {
+                    diag_sum += vals[k];
+                }
+            }
+        }
+        let scale = diag_sum / (col_ptr.len() - 1).max(1) as f64;
+        for j in 0..col_ptr.len() - 1 {
+            for k in col_ptr[j]..col_ptr[j + 1] {
+                let i = row_idx[k];
+                if self.prescribed[i].is_some() || self.prescribed[j].is_some() {
+                    vals[k] = if i == j { scale } else { 0.0 };
+                }
+            }
+        }
+        a
+    }
+
+    fn system(&self) -> &IterationSystem {
+        self.caches.system.as_ref().expect("ensure_system ran")
+    }
+
+    /// The diagonal of the contact-free iteration matrix.
+    pub(super) fn system_diagonal(&self) -> &[f64] {
+        &self.system().diagonal
+    }
+
+    /// Solves with the contact-free iteration matrix in place.
+    pub(super) fn solve_contact_free(&self, x: &mut [f64]) {
+        self.system().cholesky.solve_in_place(x);
+    }
+
+    /// The iteration matrix with the contact entries added; re-analysed when the contact adds
+    /// couplings that are not in the contact-free pattern.
+    fn contact_matrix(
+        &self,
+        base: &SparseColMat<usize, f64>,
+        entries: &[(usize, usize, f64)],
+    ) -> Result<SparseColMat<usize, f64>> {
+        let mut matrix = base.clone();
+        let (cp, ri) = (
+            base.symbolic().col_ptr().to_vec(),
+            base.symbolic().row_idx().to_vec(),
+        );
+        let vals = matrix.val_mut();
+        let mut missing = Vec::new();
+        for &(r, c, v) in entries {
+            if self.prescribed[r].is_some() || self.prescribed[c].is_some() {
+                continue;
+            }
+            match ri[cp[c]..cp[c + 1]].binary_search(&r) {
+                Ok(k) => vals[cp[c] + k] += v,
+                Err(_) => missing.push(Triplet::new(r, c, v)),
+            }
+        }
+        if missing.is_empty() {
+            return Ok(matrix);
+        }
+        let mut triplets = missing;
+        for j in 0..matrix.ncols() {
+            for k in cp[j]..cp[j + 1] {
+                triplets.push(Triplet::new(ri[k], j, matrix.val()[k]));
+            }
+        }
+        SparseColMat::try_new_from_triplets(matrix.nrows(), matrix.ncols(), &triplets).map_err(
+            |e| Error::Factorization {
+                step: self.state.step + 1,
+                message: format!("{e:?}"),
+            },
+        )
+    }
+
+    /// The diagonal of contact stiffness entries on free unknowns.
+    fn free_contact_diagonal(&self, entries: &[(usize, usize, f64)]) -> Vec<f64> {
+        let mut d = vec![0.0; self.prescribed.len()];
+        for &(r, c, v) in entries {
+            if r == c && self.prescribed[r].is_none() {
+                d[r] += v;
+            }
+        }
+        d
+    }
+
+    /// Makes an inexact increment conserve momentum exactly. Between free bodies (no
+    /// obstacle, no prescribed component in a direction) the momentum balance is linear in the
+    /// velocities, and the internal and contact forces (equal and opposite) drop out of it:
+    /// a uniform correction `c` in each direction, `c = h * sum(linear residual) / mass`,
+    /// removes the part of the linear solve's residual that would change the total momentum.
+    /// Conjugate gradients stop at a fraction of the Newton tolerance; this keeps the head-on
+    /// impact of two bodies momentum-conserving to round-off all the same.
+    fn conserve_momentum(&self, x: &mut [f64], residual: &[f64], h: f64) {
+        if !self.model.obstacles.is_empty() {
+            return;
+        }
+        let mass: f64 = self.nodal_mass.iter().sum();
+        if !(mass > 0.0) {
+            return;
+        }
+        for d in 0..D {
+            // Axisymmetric: a radial translation is no rigid motion (it strains the hoop).
+            let axisymmetric_radius =
+                d == 0 && self.model.settings.kinematics == Kinematics::Axisymmetric;
+            if axisymmetric_radius
+                || (d..x.len())
+                    .step_by(D)
+                    .any(|i| self.prescribed[i].is_some())
+            {
+                continue;
+            }
+            let imbalance: f64 = (d..x.len()).step_by(D).map(|i| residual[i]).sum();
+            let c = h * imbalance / mass;
+            for i in (d..x.len()).step_by(D) {
+                x[i] += c;
+            }
+        }
+    }
+
+    /// `x -> (A0 + K) x` for contact stiffness entries `entries` (lower triangle, free
+    /// unknowns only).
+    fn contact_operator<'a>(
+        &'a self,
+        entries: &'a [(usize, usize, f64)],
+    ) -> impl Fn(&[f64]) -> Vec<f64> + 'a {
+        let system = self.system();
+        move |x: &[f64]| -> Vec<f64> {
+            let mut y = vec![0.0; x.len()];
+            assembly::symmetric_mul_add(&system.matrix, x, 1.0, &mut y);
+            for &(r, c, v) in entries {
+                y[r] += v * x[c];
+                if r != c {
+                    y[c] += v * x[r];
+                }
+            }
+            y
+        }
+    }
+
+    /// The contact entries on free unknowns.
+    fn free_entries(&self, entries: &[(usize, usize, f64)]) -> Vec<(usize, usize, f64)> {
+        entries
+            .iter()
+            .copied()
+            .filter(|&(r, c, _)| self.prescribed[r].is_none() && self.prescribed[c].is_none())
+            .collect()
+    }
+
+    /// Solves `(M/h + K_t + K_c) x = b` directly, `K_t` the element kernel's tangent values
+    /// (the path of laws that are not linear: the matrix changes every iteration, so it is
+    /// factored every iteration, with the symbolic analysis of the contact-free matrix).
+    pub(super) fn solve_with_tangent(
+        &self,
+        tangent_values: &[f64],
+        entries: &[(usize, usize, f64)],
+        b: &[f64],
+        h: f64,
+        step: usize,
+    ) -> Result<Vec<f64>> {
+        let mut base = self.pattern.matrix(tangent_values);
+        let (col_ptr, row_idx) = (
+            base.symbolic().col_ptr().to_vec(),
+            base.symbolic().row_idx().to_vec(),
+        );
+        let mass = self.matrices.mass.val();
+        let scale = self.system().diagonal.iter().sum::<f64>() / b.len().max(1) as f64;
+        let vals = base.val_mut();
+        for j in 0..col_ptr.len() - 1 {
+            for k in col_ptr[j]..col_ptr[j + 1] {
+                let i = row_idx[k];
+                vals[k] += mass[k] / h;
+                if self.prescribed[i].is_some() || self.prescribed[j].is_some() {
+                    vals[k] = if i == j { scale } else { 0.0 };
+                }
+            }
+        }
+        let matrix = self.contact_matrix(&base, &self.free_entries(entries))?;
+        let mut cholesky = self.system().cholesky.unfactored_copy();
+        cholesky.factor_any(&matrix, step)?;
+        let mut x = b.to_vec();
+        cholesky.solve_in_place(&mut x);
+        Ok(x)
+    }
+
+    /// A symbolic analysis to factor `matrix` with: shared with the newest contact
+    /// factorisation (or the contact-free one) when the pattern is the same.
+    fn analysis_for(&self, matrix: &SparseColMat<usize, f64>) -> Result<SparseCholesky> {
+        let mut cholesky = match self.caches.contact_factors.first() {
+            Some(f) => f.cholesky.unfactored_copy(),
+            None => self.system().cholesky.unfactored_copy(),
+        };
+        // Re-analyses only when the pattern differs (contact between bodies adds couplings).
+        cholesky.reanalyse_if_new_pattern(matrix)?;
+        Ok(cholesky)
+    }
+
+    /// Rebuilds the cached factorisations that the state names and the cache lacks (after a
+    /// restore or a rebuild from a model and a state), and drops those it no longer names.
+    pub(super) fn sync_contact_factors(&mut self) -> Result<()> {
+        let records = self.state.contact_memory.factors.clone();
+        self.caches
+            .contact_factors
+            .retain(|f| records.iter().any(|r| r.id == f.id));
+        for record in &records {
+            if self.caches.contact_factors.iter().any(|f| f.id == record.id) {
+                continue;
+            }
+            self.ensure_system(record.time_step)?;
+            let matrix = self.contact_matrix(&self.system().matrix, &record.entries)?;
+            let mut cholesky = self.analysis_for(&matrix)?;
+            let step = self.state.step + 1;
+            if record.single_precision {
+                cholesky.factor_single(&matrix, step)?;
+            } else {
+                cholesky.factor(&matrix, step)?;
+            }
+            let diagonal = self.free_contact_diagonal(&record.entries);
+            self.caches.contact_factors.push(ContactFactor {
+                id: record.id,
+                cholesky,
+                diagonal,
+            });
+        }
+        Ok(())
+    }
+
+    /// Keeps a new contact factorisation (of `A0 + entries`) as the newest preconditioner; the
+    /// oldest beyond [`CONTACT_FACTORS_KEPT`] is forgotten by the state (the cache keeps it
+    /// until the step is committed, so that a failed step restores without refactoring).
+    fn keep_contact_factor(
+        &mut self,
+        cholesky: SparseCholesky,
+        entries: &[(usize, usize, f64)],
+        h: f64,
+    ) {
+        let memory = &mut self.state.contact_memory;
+        let id = memory.next_factor;
+        memory.next_factor += 1;
+        let single_precision = cholesky.is_single_precision();
+        memory.factors.insert(
+            0,
+            FactorRecord {
+                id,
+                time_step: h,
+                entries: entries.to_vec(),
+                single_precision,
+            },
+        );
+        memory.factors.truncate(CONTACT_FACTORS_KEPT);
+        let diagonal = self.free_contact_diagonal(entries);
+        self.caches.contact_factors.insert(
+            0,
+            ContactFactor {
+                id,
+                cholesky,
+                diagonal,
+            },
+        );
+    }
+
+    /// Factors `A0 + K_c` (kept as the preconditioner of the following iterations) and solves
+    /// with it. The consistent tangent first (`entries` plus `geometric`); where its geometric
+    /// part makes the matrix indefinite (large pressure on a soft body), Newton goes on without
+    /// it. Each matrix is factored in single precision first and the solve refined by
+    /// conjugate gradients in double precision (a few iterations); where that does not
+    /// converge (an ill-conditioned matrix), in double precision, solved directly.
+    pub(super) fn factor_contact(
+        &mut self,
+        entries: &[(usize, usize, f64)],
+        geometric: &[(usize, usize, f64)],
+        b: &[f64],
+        target: f64,
+        h: f64,
+        step: usize,
+    ) -> Result<Vec<f64>> {
+        let mut candidates = Vec::new();
+        if !geometric.is_empty() {
+            let mut with_geometry = entries.to_vec();
+            with_geometry.extend_from_slice(geometric);
+            candidates.push(self.free_entries(&with_geometry));
+        }
+        candidates.push(self.free_entries(entries));
+        let mut failure = None;
+        for entries in &candidates {
+            let matrix = self.contact_matrix(&self.system().matrix, entries)?;
+            let mut cholesky = self.analysis_for(&matrix)?;
+            if !self.state.contact_memory.double_precision_only
+                && cholesky.factor_single(&matrix, step).is_ok()
+            {
+                let refined = conjugate_gradients(
+                    &self.contact_operator(entries),
+                    &|r| cholesky.solve_in_place(r),
+                    b,
+                    target,
+                    SINGLE_PRECISION_REFINEMENT,
+                );
+                if let Some((mut x, residual)) = refined {
+                    self.conserve_momentum(&mut x, &residual, h);
+                    self.keep_contact_factor(cholesky, entries, h);
+                    return Ok(x);
+                }
+                // Too ill-conditioned for single precision: stay in double from now on.
+                self.state.contact_memory.double_precision_only = true;
+            }
+            match cholesky.factor(&matrix, step) {
+                Ok(()) => {
+                    let mut x = b.to_vec();
+                    cholesky.solve_in_place(&mut x);
+                    self.keep_contact_factor(cholesky, entries, h);
+                    return Ok(x);
+                }
+                Err(e) => failure = Some(e),
+            }
+        }
+        Err(failure.expect("at least one candidate matrix"))
+    }
+
+    /// Solves `(A0 + K_c) x = b` to a residual norm of `target` by conjugate gradients
+    /// preconditioned with the nearest factored matrix (see the module documentation).
+    /// `None` when the tangent has a geometric part, the difference is not of low rank, or CG
+    /// does not converge in time: the caller then factors `A0 + K_c`.
+    pub(super) fn preconditioned_solve(
+        &self,
+        entries: &[(usize, usize, f64)],
+        geometric: &[(usize, usize, f64)],
+        b: &[f64],
+        target: f64,
+    ) -> Option<Vec<f64>> {
+        let system = self.caches.system.as_ref()?;
+        if !geometric.is_empty() {
+            return None;
+        }
+        let entries = self.free_entries(entries);
+        let now = self.free_contact_diagonal(&entries);
+        // The nearest factorisation; ties go to the most recent contact one.
+        let mut nearest: Option<&ContactFactor> = None;
+        let mut changes = strong_changes(&system.diagonal, None, &now);
+        for record in self.state.contact_memory.factors.iter().rev() {
+            if record.time_step != system.time_step {
+                continue;
+            }
+            let Some(f) = self.caches.contact_factors.iter().find(|f| f.id == record.id) else {
+                continue;
+            };
+            let c = strong_changes(&system.diagonal, Some(&f.diagonal), &now);
+            if c <= changes {
+                changes = c;
+                nearest = Some(f);
+            }
+        }
+        if changes > PCG_LOW_RANK {
+            return None;
+        }
+        let apply = self.contact_operator(&entries);
+        let preconditioner = nearest.map_or(&system.cholesky, |f| &f.cholesky);
+        let (mut x, residual) = conjugate_gradients(
+            &apply,
+            &|r| preconditioner.solve_in_place(r),
+            b,
+            target,
+            changes + PCG_SLACK,
+        )?;
+        self.conserve_momentum(&mut x, &residual, system.time_step);
+        Some(x)
+    }
+}
+
+/// The diagonal of a lower-triangle CSC matrix.
+fn diagonal_of(matrix: &SparseColMat<usize, f64>) -> Vec<f64> {
+    let mut diagonal = vec![0.0; matrix.nrows()];
+    let (cp, ri, v) = (
+        matrix.symbolic().col_ptr(),
+        matrix.symbolic().row_idx(),
+        matrix.val(),
+    );
+    for j in 0..matrix.ncols() {
+        for k in cp[j]..cp[j + 1] {
+            if ri[k] == j {
+                diagonal[j] = v[k];
+            }
+        }
+    }
+    diagonal
+}

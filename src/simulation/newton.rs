@@ -1,0 +1,382 @@
+//! Newton's method on the momentum balance at `t_alpha`,
+//! `R(v1) = M (v1 - v0)/h + f_int(u_alpha) - f_ext - f_c(v1) = 0`, with the contact method's
+//! outer loop around it (multiplier or active-set updates, the friction threshold's fixed
+//! point). Prescribed components are set in the initial guess and kept; the tangent is the
+//! contact-free iteration matrix plus the contact entries, solved by
+//! [`linear_solve`](super::linear_solve). A step whose residual grows is backtracked (contact
+//! and friction are not smooth).
+
+use std::collections::BTreeMap;
+
+use nalgebra::SVector;
+
+use super::contact_terms::{ContactTerms, TermsInput};
+use super::observe::{IterationInfo, Recorder};
+use super::{end_positions, Simulation};
+use crate::assembly::{self, KernelFields};
+use crate::contact::methods::{self, Method, OuterUpdate, OuterVariables, PairStatus};
+use crate::contact::{ContactKey, FrictionLaw, Master, Obstacle};
+use crate::dim::{Dim, SpatialDim};
+use crate::error::{Error, Result};
+use crate::friction::{threshold_change, ThresholdSample};
+
+/// Halvings of a Newton increment while the residual grows.
+const MAX_BACKTRACKS: usize = 4;
+
+/// What a step starts from.
+pub(super) struct StepStart<const D: usize> {
+    /// Step number (1-based).
+    pub step: usize,
+    /// Time at the start [s].
+    pub t0: f64,
+    /// Step size [s].
+    pub h: f64,
+    /// Displacements and velocities at t0.
+    pub u0: Vec<f64>,
+    /// Velocities at t0 [m/s].
+    pub v0: Vec<f64>,
+    /// External forces at t_alpha [N].
+    pub f_ext: Vec<f64>,
+    /// Positions at t0 [m].
+    pub x0: Vec<SVector<f64, D>>,
+    /// The obstacles at t0 and t1.
+    pub obstacles_t0: Vec<Obstacle<D>>,
+    /// The obstacles at t1.
+    pub obstacles_t1: Vec<Obstacle<D>>,
+    /// Obstacle translations at t1 (flat) [m].
+    pub translations_t1: Vec<f64>,
+    /// Face shares of the boundary nodes at t0.
+    pub areas: Vec<Vec<(f64, SVector<f64, D>)>>,
+}
+
+/// What Newton and the outer loop converged to.
+pub(super) struct Solution<const D: usize> {
+    /// End velocities [m/s].
+    pub v1: Vec<f64>,
+    /// The residual at the solution (its prescribed rows are the reactions) [N].
+    pub residual: Vec<f64>,
+    /// The contact terms at the solution.
+    pub terms: ContactTerms<D>,
+    /// The method's outer variables at the solution.
+    pub vars: OuterVariables,
+    /// The friction thresholds at the solution.
+    pub friction_normals: BTreeMap<ContactKey, f64>,
+    /// Linear solves.
+    pub iterations: usize,
+    /// Final relative residual.
+    pub relative: f64,
+}
+
+impl<const D: usize> Simulation<D>
+where
+    Dim<D>: SpatialDim<D>,
+{
+    /// Whether any friction law is active.
+    fn frictional(&self) -> bool {
+        self.model.contact.friction != FrictionLaw::Frictionless
+            || self
+                .model
+                .obstacles
+                .iter()
+                .any(|o| o.friction.is_some_and(|f| f != FrictionLaw::Frictionless))
+    }
+
+    /// Newton with the contact method's outer loop: the end velocities of the step.
+    pub(super) fn solve_step(
+        &mut self,
+        start: &StepStart<D>,
+        recorder: &mut dyn Recorder<D>,
+    ) -> Result<Solution<D>> {
+        let (step, t0, h) = (start.step, start.t0, start.h);
+        let (u0, v0, f_ext) = (&start.u0, &start.v0, &start.f_ext);
+        let (d0, d1) = self.model.settings.scheme.displacement_weights();
+        let ndof = v0.len();
+        let method: &dyn Method = methods::method(self.model.contact.method);
+        let contact_in_newton = self.caches.detector.is_some() && method.in_newton();
+        let t1_vectors: Vec<SVector<f64, D>> =
+            start.obstacles_t1.iter().map(|o| o.translation).collect();
+        let diagonal = self.system_diagonal().to_vec();
+        let frictional = self.frictional();
+        let tolerance = self.model.settings.tolerance;
+        let not_converged = |iterations: usize, residual: f64| Error::NotConverged {
+            step,
+            time: t0,
+            iterations,
+            residual,
+            tolerance,
+        };
+
+        let mut friction_normals: BTreeMap<ContactKey, f64> = self
+            .state
+            .friction_normals
+            .iter()
+            .map(|&(s, m, f)| ((s, m), f))
+            .collect();
+        let mut vars = OuterVariables::default();
+        if method.carries_multipliers() {
+            vars.multipliers = self
+                .state
+                .multipliers
+                .iter()
+                .map(|&(s, m, l)| ((s, m), l))
+                .collect();
+        }
+        let mut passes = 0;
+
+        let mut v1 = v0.clone();
+        for (dof, p) in self.prescribed.iter().enumerate() {
+            if let Some(v) = p {
+                v1[dof] = *v;
+            }
+        }
+        let mut u_alpha = vec![0.0; ndof];
+        let mut residual = vec![0.0; ndof];
+        let mut iterations = 0;
+        let mut terms = ContactTerms::<D>::default();
+        let mut candidates = 0;
+        let mut previous_norm = f64::INFINITY;
+        let mut last_increment: Vec<f64> = Vec::new();
+        // -M v0 / h: the same in every iteration.
+        let mut momentum0 = vec![0.0; ndof];
+        assembly::symmetric_mul_add(&self.matrices.mass, v0, -1.0 / h, &mut momentum0);
+        let mut backtracks = 0;
+        let general = self.uses_general_path();
+        let mut tangent_values: Vec<f64> = Vec::new();
+        loop {
+            let x_gap = end_positions(&self.reference, u0, v0, &v1, h);
+            if contact_in_newton {
+                let detector = self.caches.detector.as_mut().expect("contact_in_newton");
+                detector.update_candidates(&start.x0, &x_gap, &start.obstacles_t0, &t1_vectors);
+                candidates = detector.candidates().len();
+                let mut pairs = detector.pairs(&x_gap, &start.obstacles_t1);
+                // One pass between two bodies: the nodes of the body listed first are slaves
+                // against the facets of the other (no duplicated constraints). Self-contact
+                // keeps both sides of a fold.
+                let facet_body = detector.surface().facet_body();
+                let offsets = &self.node_offsets;
+                pairs.retain(|p| match p.master {
+                    Master::Facet(f) => {
+                        let slave_body = offsets.partition_point(|&o| o <= p.slave) - 1;
+                        facet_body[f] >= slave_body
+                    }
+                    Master::Obstacle(_) => true,
+                });
+                if !vars.started {
+                    let penetrating: Vec<ContactKey> = pairs
+                        .iter()
+                        .filter(|p| p.gap < 0.0)
+                        .map(|p| self.contact_key(p))
+                        .collect();
+                    method.start(&mut vars, &penetrating);
+                    vars.started = true;
+                }
+                terms = self.contact_terms(
+                    &pairs,
+                    &TermsInput {
+                        method,
+                        obstacles_t1: &start.obstacles_t1,
+                        x_gap: &x_gap,
+                        v0,
+                        v1: &v1,
+                        time_step: h,
+                        areas: &start.areas,
+                        vars: &vars,
+                        friction_normals: &friction_normals,
+                        diagonal: &diagonal,
+                    },
+                );
+            }
+            for i in 0..ndof {
+                u_alpha[i] = u0[i] + h * (d0 * v0[i] + d1 * v1[i]);
+            }
+            let mut inertia = momentum0.clone();
+            let mut momentum1 = vec![0.0; ndof];
+            assembly::symmetric_mul_add(&self.matrices.mass, &v1, 1.0 / h, &mut momentum1);
+            // Linear laws: K u_alpha with the K assembled once; other laws: the element
+            // kernel's forces and tangent at this iterate.
+            let internal = if general {
+                let alpha = self.model.settings.scheme.alpha;
+                let v_alpha: Vec<f64> = (0..ndof)
+                    .map(|i| (1.0 - alpha) * v0[i] + alpha * v1[i])
+                    .collect();
+                let (forces, values, _) = assembly::internal_forces_and_tangent(
+                    &self.table,
+                    Some(&self.pattern),
+                    &self.reference,
+                    &self.integration,
+                    &KernelFields {
+                        displacement: Some(&u_alpha),
+                        velocity: Some(&v_alpha),
+                        weights: (d1 * h, alpha),
+                        time_step: h,
+                        alpha,
+                    },
+                    ndof,
+                );
+                tangent_values = values.unwrap_or_default();
+                forces
+            } else {
+                let mut internal = vec![0.0; ndof];
+                assembly::symmetric_mul_add(&self.matrices.stiffness, &u_alpha, 1.0, &mut internal);
+                internal
+            };
+            let mut free_norm2 = 0.0;
+            let mut scale2 = [0.0f64; 5];
+            for i in 0..ndof {
+                let contact = terms.forces.get(i).copied().unwrap_or(0.0);
+                let old = inertia[i];
+                inertia[i] += momentum1[i];
+                residual[i] = inertia[i] + internal[i] - f_ext[i] - contact;
+                if self.prescribed[i].is_none() {
+                    free_norm2 += residual[i] * residual[i];
+                }
+                // The scale includes prescribed dofs: at equilibrium the free-dof forces
+                // cancel, while the reactions carry the load level.
+                scale2[0] += old * old;
+                scale2[1] += momentum1[i] * momentum1[i];
+                scale2[2] += internal[i] * internal[i];
+                scale2[3] += f_ext[i] * f_ext[i];
+                scale2[4] += contact * contact;
+            }
+            let scale = scale2.iter().fold(0.0f64, |m, s| m.max(s.sqrt()));
+            let norm = free_norm2.sqrt();
+            let rel = if scale > 0.0 { norm / scale } else { 0.0 };
+            if !rel.is_finite() {
+                return Err(Error::Unstable {
+                    step,
+                    time: t0 + h,
+                    detail: "the residual became non-finite".into(),
+                });
+            }
+            // Backtracking: contact and friction are not smooth, and a full Newton step can
+            // overshoot (first touch with a stiff penalty); halve it while the residual grows.
+            if contact_in_newton
+                && !last_increment.is_empty()
+                && norm > previous_norm
+                && backtracks < MAX_BACKTRACKS
+            {
+                for i in 0..ndof {
+                    last_increment[i] *= 0.5;
+                    v1[i] -= last_increment[i];
+                }
+                backtracks += 1;
+                continue;
+            }
+            backtracks = 0;
+            previous_norm = norm;
+            if rel <= tolerance {
+                // Newton converged for the current outer variables.
+                let statuses: Vec<PairStatus> = terms.pairs.iter().map(PairStatus::from).collect();
+                let mut messages = Vec::new();
+                let outcome = method.outer_update(
+                    &statuses,
+                    &mut vars,
+                    &self.model.contact,
+                    h,
+                    &mut |m| messages.push(m),
+                );
+                for m in messages {
+                    recorder.log(self, &format!("step {step}: {m}"));
+                }
+                let mut done = match outcome {
+                    OuterUpdate::Converged => true,
+                    OuterUpdate::Again => false,
+                    OuterUpdate::Cycle => return Err(not_converged(iterations, rel)),
+                };
+                if done && frictional {
+                    // The friction threshold follows the normal force until it settles.
+                    let samples: Vec<ThresholdSample<ContactKey>> = terms
+                        .pairs
+                        .iter()
+                        .map(|p| ThresholdSample {
+                            key: p.key,
+                            law: self.friction_law(p.obstacle),
+                            normal_force: p.normal_force,
+                        })
+                        .collect();
+                    if let Some(next) = threshold_change(&samples, &friction_normals) {
+                        done = false;
+                        friction_normals = next;
+                    }
+                }
+                if done {
+                    return Ok(Solution {
+                        v1,
+                        residual,
+                        terms,
+                        vars,
+                        friction_normals,
+                        iterations,
+                        relative: rel,
+                    });
+                }
+                passes += 1;
+                previous_norm = f64::INFINITY;
+                last_increment.clear();
+                if passes > self.model.contact.max_passes {
+                    return Err(not_converged(iterations, rel));
+                }
+                continue;
+            }
+            if iterations >= self.model.settings.max_iterations {
+                return Err(not_converged(iterations, rel));
+            }
+            let mut increment: Vec<f64> = residual
+                .iter()
+                .zip(&self.prescribed)
+                .map(|(r, p)| if p.is_some() { 0.0 } else { -r })
+                .collect();
+            // Linear solves go only as far as Newton needs: a tenth of its tolerance.
+            let target = 0.1 * tolerance * scale;
+            if general {
+                let mut entries = terms.entries.clone();
+                entries.extend_from_slice(&terms.geometric);
+                increment = self.solve_with_tangent(&tangent_values, &entries, &increment, h, step)?;
+            } else if terms.entries.is_empty() {
+                self.solve_contact_free(&mut increment);
+            } else if let Some(x) =
+                self.preconditioned_solve(&terms.entries, &terms.geometric, &increment, target)
+            {
+                increment = x;
+            } else {
+                increment = self.factor_contact(
+                    &terms.entries,
+                    &terms.geometric,
+                    &increment,
+                    target,
+                    h,
+                    step,
+                )?;
+            }
+            let mut inc2 = 0.0;
+            for i in 0..ndof {
+                if self.prescribed[i].is_none() {
+                    v1[i] += increment[i];
+                    inc2 += increment[i] * increment[i];
+                }
+            }
+            last_increment = increment;
+            iterations += 1;
+            if !recorder.is_enabled() {
+                continue;
+            }
+            let records = self.records(&terms, &x_gap, method, &vars);
+            recorder.iteration(
+                self,
+                &IterationInfo {
+                    step,
+                    iteration: iterations,
+                    time: t0,
+                    time_step: h,
+                    residual_norm: norm,
+                    relative_residual: rel,
+                    increment_norm: inc2.sqrt(),
+                    end_velocity: &v1,
+                    end_positions: &end_positions(&self.reference, u0, v0, &v1, h),
+                    candidates,
+                    contacts: &records,
+                },
+            );
+        }
+    }
+}

@@ -1,0 +1,80 @@
+//! The state: everything that affects the results of the next steps, one serialisable value.
+//! What is not here is a cache, rebuilt from the model and the state (matrices, factorisations,
+//! hierarchies): a failed step restores the state and nothing else, and a simulation rebuilt
+//! from a model and a state continues bit for bit.
+
+use serde::{Deserialize, Serialize};
+
+pub use crate::contact::MasterId;
+use crate::contact::ContactKey;
+
+/// The evolving state: one serialisable value.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct State {
+    /// Steps taken.
+    pub step: usize,
+    /// Current time [s].
+    pub time: f64,
+    /// Nodal displacements from the reference configuration [m], D per node, bodies in order.
+    pub displacement: Vec<f64>,
+    /// Nodal velocities [m/s].
+    pub velocity: Vec<f64>,
+    /// Cumulative external work [J].
+    pub external_work: f64,
+    /// Cumulative dissipation [J].
+    pub dissipated_energy: f64,
+    /// Constant external nodal forces set through the API [N].
+    pub loads: Vec<f64>,
+    /// Displacement of each obstacle since t = 0 [m], D per obstacle.
+    pub obstacle_translations: Vec<f64>,
+    /// Velocity of each obstacle [m/s], D per obstacle (changed between steps through the API).
+    pub obstacle_velocities: Vec<f64>,
+    /// Energy stored in soft-way penalties at the end of the last step [J].
+    pub contact_energy: f64,
+    /// Augmented Lagrangian multipliers carried from step to step: (slave node, master,
+    /// contact pressure [Pa]).
+    pub multipliers: Vec<(usize, MasterId, f64)>,
+    /// The normal forces that set the friction thresholds (slave node, master, force [N]),
+    /// carried from step to step as the start of the fixed point on the threshold.
+    pub friction_normals: Vec<(usize, MasterId, f64)>,
+    /// The energy stability is measured against at t = 0 [J] (E(0)).
+    pub reference_energy: f64,
+    /// Per-quadrature-point history of the materials that carry one, cell by cell.
+    pub material_history: Vec<f64>,
+    /// Contact memory that changes results: the narrow phase's chosen facets and the contact
+    /// factorisations that precondition the linear solves.
+    pub contact_memory: ContactMemory,
+}
+
+/// The parts of contact resolution that carry over from step to step.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct ContactMemory {
+    /// The narrow phase's hysteresis: the master facet (or obstacle feature) chosen last for
+    /// each (slave, master).
+    pub detection: Vec<(ContactKey, usize)>,
+    /// The contact iteration matrices factored as preconditioners, newest first. A solve
+    /// preconditioned by one of them gives other round-off than by another, so which ones
+    /// exist is state; the factors themselves are a cache rebuilt from these entries.
+    pub factors: Vec<FactorRecord>,
+    /// Whether new contact matrices are factored in single precision (switched off for good
+    /// the first time a single-precision factor fails to converge).
+    pub double_precision_only: bool,
+    /// The id of the next factorisation.
+    pub next_factor: u64,
+}
+
+/// A factored contact iteration matrix: the contact-free matrix of `time_step` plus `entries`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct FactorRecord {
+    /// Its id (the cache key).
+    pub id: u64,
+    /// The step size of the contact-free part [s].
+    pub time_step: f64,
+    /// The contact entries on free unknowns (row, column, value; lower triangle).
+    pub entries: Vec<(usize, usize, f64)>,
+    /// Whether it was factored in single precision.
+    pub single_precision: bool,
+}
+
+
+
