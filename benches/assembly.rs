@@ -26,10 +26,7 @@ fn assembly(c: &mut Criterion) {
     let mut group = c.benchmark_group("assembly_100k");
     group.sample_size(10);
     let steel = LinearElastic::new(2.1e11, 0.3, 7800.0).expect("valid");
-    let body = BodyIntegration {
-        kinematics: Kinematics::Solid,
-        material: Material::LinearElastic(steel),
-    };
+    let body = BodyIntegration::new(Kinematics::Solid, Material::LinearElastic(steel));
     for kind in [ElementKind::Tet4, ElementKind::Hex8] {
         let mesh = box_mesh(kind, 100_000);
         let mut table = CellTable::default();

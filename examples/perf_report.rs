@@ -20,10 +20,7 @@ fn main() -> Result<()> {
         .and_then(|a| a.parse().ok())
         .unwrap_or(100_000);
     let steel = LinearElastic::new(2.1e11, 0.3, 7800.0)?;
-    let integration = BodyIntegration {
-        kinematics: Kinematics::Solid,
-        material: Material::LinearElastic(steel),
-    };
+    let integration = BodyIntegration::new(Kinematics::Solid, Material::LinearElastic(steel));
     println!(
         "machine: {} logical cores",
         std::thread::available_parallelism().map_or(1, |n| n.get())

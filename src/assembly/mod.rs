@@ -13,6 +13,7 @@ use crate::dim::{Dim, Kinematics, SpatialDim, Voigt};
 use crate::element::{ElementKind, MAX_NODES};
 use crate::error::{Error, Result};
 use crate::material::{ConstitutiveLaw, Material, PointKinematics};
+use std::sync::Arc;
 
 /// Largest number of dofs of one cell.
 const MAX_DOFS: usize = MAX_NODES * 3;
@@ -176,12 +177,39 @@ impl Pattern {
 }
 
 /// What one body needs for its element integrals.
-#[derive(Debug, Clone, Copy)]
+#[derive(Clone)]
 pub struct BodyIntegration {
     /// Kinematics of the body.
     pub kinematics: Kinematics,
-    /// Constitutive law (its density gives the mass).
-    pub material: Material,
+    /// Constitutive law, evaluated per quadrature point.
+    pub law: Arc<dyn ConstitutiveLaw>,
+    /// Mass density [kg/m^3].
+    pub density: f64,
+}
+
+impl BodyIntegration {
+    /// A body of `material` in `kinematics`.
+    pub fn new(kinematics: Kinematics, material: Material) -> Self {
+        BodyIntegration {
+            kinematics,
+            law: Arc::new(material),
+            density: material.density(),
+        }
+    }
+
+    /// History values of one cell of `kind`.
+    fn history_per_cell(&self, kind: ElementKind) -> usize {
+        kind.quadrature().len() * self.law.history_len()
+    }
+}
+
+/// Total history values of every cell of a table (the length of the state's material history).
+pub fn history_len(table: &CellTable, bodies: &[BodyIntegration]) -> usize {
+    table
+        .segments
+        .iter()
+        .map(|seg| seg.cells.len() * bodies[seg.body].history_per_cell(seg.kind))
+        .sum()
 }
 
 /// The fields the element kernel evaluates the law with.
@@ -202,6 +230,10 @@ pub struct KernelFields<'a> {
 /// What the element kernel writes for one cell; each output is optional.
 #[derive(Default)]
 struct CellOutput<'a> {
+    /// The cell's history at the start of the step (quadrature point after point).
+    history: &'a [f64],
+    /// Where the cell's new history goes.
+    new_history: Option<&'a mut [f64]>,
     /// Tangent values (lower triangle, canonical order).
     tangent: Option<&'a mut [f64]>,
     /// Consistent mass values (lower triangle, canonical order).
@@ -231,7 +263,11 @@ fn cell_kernel<const D: usize>(
 {
     let n = kind.nodes();
     let m = n * D;
-    let density = body.material.density();
+    let density = body.density;
+    let per_point = body.law.history_len();
+    let mut out = out;
+    let mut new_history = out.new_history.take();
+    let mut scratch = vec![0.0; if new_history.is_none() { per_point } else { 0 }];
     let want_tangent = out.tangent.is_some();
     let want_mass = out.mass.is_some();
     let mut K = [[0.0f64; MAX_DOFS]; MAX_DOFS];
@@ -244,9 +280,15 @@ fn cell_kernel<const D: usize>(
     let node_value = |values: &[f64], node: usize| {
         SVector::<f64, D>::from_column_slice(&values[node * D..node * D + D])
     };
-    for q in kind.quadrature() {
+    for (iq, q) in kind.quadrature().iter().enumerate() {
         let (shape, grads, position, det) = spatial_gradients::<D>(kind, cell, x, q.xi);
         let dv = q.weight * det * <Dim<D>>::measure_factor(body.kinematics, &position);
+        let points = iq * per_point..(iq + 1) * per_point;
+        let history = out.history.get(points.clone()).unwrap_or(&[]);
+        let new_point_history = match new_history.as_deref_mut() {
+            Some(h) => &mut h[points],
+            None => &mut scratch[..],
+        };
         let mut strain = Voigt::zeros();
         let mut strain_rate = Voigt::zeros();
         let mut spin = nalgebra::Matrix3::<f64>::zeros();
@@ -266,7 +308,7 @@ fn cell_kernel<const D: usize>(
                 }
             }
         }
-        let response = body.material.evaluate(
+        let response = body.law.evaluate(
             &PointKinematics {
                 kinematics: body.kinematics,
                 strain,
@@ -275,8 +317,8 @@ fn cell_kernel<const D: usize>(
                 time_step: fields.time_step,
                 alpha: fields.alpha,
             },
-            &[],
-            &mut [],
+            history,
+            new_point_history,
         );
         if want_tangent {
             let (w0, w1) = fields.weights;
@@ -523,13 +565,14 @@ pub fn symmetric_dot(a: &SparseColMat<usize, f64>, x: &[f64], y: &[f64]) -> f64 
     x.iter().zip(&ay).map(|(a, b)| a * b).sum()
 }
 
-/// The average Voigt stress of every cell for displacements `u` (flat, D per node), bodies in
-/// order.
+/// The average Voigt stress of every cell for displacements `u` (flat, D per node) and the
+/// material history `history` (the state's), bodies in order.
 pub fn cell_stresses<const D: usize>(
     table: &CellTable,
     x: &[SVector<f64, D>],
     bodies: &[BodyIntegration],
     u: &[f64],
+    history: &[f64],
 ) -> Vec<Voigt>
 where
     Dim<D>: SpatialDim<D>,
@@ -539,14 +582,19 @@ where
         ..Default::default()
     };
     let mut out = vec![Voigt::zeros(); table.len()];
+    let mut offset = 0;
     for seg in &table.segments {
+        let body = &bodies[seg.body];
+        let per = body.history_per_cell(seg.kind);
         for c in seg.cells.clone() {
             let cell = table.cell(c, seg.kind);
             let output = CellOutput {
+                history: history.get(offset..offset + per).unwrap_or(&[]),
                 stress: Some(&mut out[c]),
                 ..Default::default()
             };
-            cell_kernel::<D>(seg.kind, cell, x, &bodies[seg.body], &fields, output);
+            offset += per;
+            cell_kernel::<D>(seg.kind, cell, x, body, &fields, output);
         }
     }
     out
@@ -560,38 +608,59 @@ pub fn von_mises(s: &Voigt) -> f64 {
         .sqrt()
 }
 
+/// What [`integrate`] returns.
+pub struct Integrated {
+    /// Internal forces `int B^T sigma` [N] (flat, D per node).
+    pub forces: Vec<f64>,
+    /// Tangent values in the pattern's triplet order, when a pattern was given.
+    pub tangent: Option<Vec<f64>>,
+    /// Stored energy [J].
+    pub energy: f64,
+    /// The material history at the end of the step, for these fields.
+    pub history: Vec<f64>,
+}
+
 /// Internal forces `f_int = int B^T sigma` integrated cell by cell from the law's stresses at
-/// the displacements and velocities of `fields`, the tangent values of `fields.weights` (when
-/// `pattern` is given) and the stored energy. The path of laws that are not linear; for linear
-/// laws the forces equal `K u` (tested).
-pub fn internal_forces_and_tangent<const D: usize>(
+/// the displacements and velocities of `fields` and the material `history` at the start of
+/// the step, the tangent values of `fields.weights` (when `pattern` is given), the stored
+/// energy and the new history. The path of laws that are not linear; for linear laws the
+/// forces equal `K u` (tested). Cells run in parallel; sums are in a fixed order.
+pub fn integrate<const D: usize>(
     table: &CellTable,
     pattern: Option<&Pattern>,
     x: &[SVector<f64, D>],
     bodies: &[BodyIntegration],
     fields: &KernelFields<'_>,
+    history: &[f64],
     ndof: usize,
-) -> (Vec<f64>, Option<Vec<f64>>, f64)
+) -> Integrated
 where
     Dim<D>: SpatialDim<D>,
 {
     let mut f = vec![0.0; ndof];
     let mut tangent = pattern.map(|p| vec![0.0; p.triplets]);
     let mut energy = 0.0;
+    let mut new_history = vec![0.0; history_len(table, bodies)];
+    let mut offset = 0;
     for seg in &table.segments {
         let per = values_per_cell(seg.kind, D);
         let m = seg.kind.nodes() * D;
         let body = &bodies[seg.body];
         let count = seg.cells.len();
-        // Per-cell forces and energies, computed in parallel, summed in a fixed order.
+        let hp = body.history_per_cell(seg.kind);
+        let seg_history = history.get(offset..offset + count * hp).unwrap_or(&[]);
+        // Per-cell forces, energies and histories, summed or copied in a fixed order.
         let mut local = vec![0.0; count * m];
         let mut energies = vec![0.0; count];
+        let mut histories = vec![0.0; count * hp.max(1)];
         let mut k_seg: Option<&mut [f64]> = tangent
             .as_mut()
             .map(|t| &mut t[seg.first_value..seg.first_value + per * count]);
-        let work = |c: usize, fl: &mut [f64], e: &mut f64, k: Option<&mut [f64]>| {
+        let work = |c: usize, fl: &mut [f64], e: &mut f64, hl: &mut [f64], k: Option<&mut [f64]>| {
             let cell = table.cell(seg.cells.start + c, seg.kind);
             let out = CellOutput {
+                history: seg_history.get(c * hp..(c + 1) * hp).unwrap_or(&[]),
+                new_history: (hp > 0).then_some(hl),
                 tangent: k,
                 force: Some(fl),
                 energy: Some(e),
@@ -602,25 +671,29 @@ where
         #[cfg(feature = "parallel")]
         {
             use rayon::prelude::*;
+            let cells = local
+                .par_chunks_mut(m)
+                .zip(energies.par_iter_mut())
+                .zip(histories.par_chunks_mut(hp.max(1)));
             match k_seg.as_deref_mut() {
-                Some(k) => local
-                    .par_chunks_mut(m)
-                    .zip(energies.par_iter_mut())
+                Some(k) => cells
                     .zip(k.par_chunks_mut(per))
                     .enumerate()
-                    .for_each(|(c, ((fl, e), k))| work(c, fl, e, Some(k))),
-                None => local
-                    .par_chunks_mut(m)
-                    .zip(energies.par_iter_mut())
+                    .for_each(|(c, (((fl, e), hl), k))| work(c, fl, e, hl, Some(k))),
+                None => cells
                     .enumerate()
-                    .for_each(|(c, (fl, e))| work(c, fl, e, None)),
+                    .for_each(|(c, ((fl, e), hl))| work(c, fl, e, hl, None)),
             }
         }
         #[cfg(not(feature = "parallel"))]
         {
             let mut k_chunks = k_seg.as_deref_mut().map(|k| k.chunks_mut(per));
-            for (c, (fl, e)) in local.chunks_mut(m).zip(energies.iter_mut()).enumerate() {
-                work(c, fl, e, k_chunks.as_mut().and_then(|it| it.next()));
+            let cells = local
+                .chunks_mut(m)
+                .zip(energies.iter_mut())
+                .zip(histories.chunks_mut(hp.max(1)));
+            for (c, ((fl, e), hl)) in cells.enumerate() {
+                work(c, fl, e, hl, k_chunks.as_mut().and_then(|it| it.next()));
             }
         }
         for (c, fl) in local.chunks(m).enumerate() {
@@ -632,6 +705,15 @@ where
             }
         }
         energy += energies.iter().sum::<f64>();
+        if hp > 0 {
+            new_history[offset..offset + count * hp].copy_from_slice(&histories);
+        }
+        offset += count * hp;
     }
-    (f, tangent, energy)
+    Integrated {
+        forces: f,
+        tangent,
+        energy,
+        history: new_history,
+    }
 }

@@ -44,7 +44,7 @@ pub struct PointResponse {
 }
 
 /// A constitutive law evaluated per quadrature point.
-pub trait ConstitutiveLaw {
+pub trait ConstitutiveLaw: Send + Sync {
     /// Number of history values per quadrature point (0 for laws without history).
     fn history_len(&self) -> usize {
         0

@@ -27,7 +27,6 @@ use crate::assembly::{self, BodyIntegration, CellTable, LinearMatrices, Pattern}
 use crate::contact::{ContactSettings, ContactSurface, DetectionOptions, Detector, Obstacle};
 use crate::dim::{Dim, Kinematics, SpatialDim};
 use crate::error::{Error, Result};
-use crate::material::ConstitutiveLaw;
 use crate::mesh::Mesh;
 use crate::solver::FillOrdering;
 use crate::time::{Beta, SpaceTimeScheme};
@@ -409,10 +408,7 @@ where
             for block in &body.mesh.blocks {
                 table.push_block(b, block.kind, &block.connectivity, offset);
             }
-            integration.push(BodyIntegration {
-                kinematics: settings.kinematics,
-                material: body.material,
-            });
+            integration.push(BodyIntegration::new(settings.kinematics, body.material));
         }
         let nodes = reference.len();
         let pattern = Pattern::new::<D>(&table, nodes)?;
@@ -566,10 +562,10 @@ where
             multipliers: Vec::new(),
             friction_normals: Vec::new(),
             reference_energy: 0.0,
-            material_history: Vec::new(),
+            material_history: vec![0.0; assembly::history_len(&table, &integration)],
             contact_memory: ContactMemory::default(),
         };
-        let general_path = bodies.iter().any(|b| !b.material.is_linear());
+        let general_path = integration.iter().any(|b| !b.law.is_linear());
         let mut sim = Simulation {
             model,
             state,
@@ -820,15 +816,16 @@ where
                     displacement: Some(&s.displacement),
                     ..Default::default()
                 };
-                assembly::internal_forces_and_tangent::<D>(
+                assembly::integrate::<D>(
                     &self.table,
                     None,
                     &self.reference,
                     &self.integration,
                     &fields,
+                    &s.material_history,
                     s.displacement.len(),
                 )
-                .2
+                .energy
             } else {
                 0.5 * self.strain_energy_product(&s.displacement)
             },
@@ -872,6 +869,7 @@ where
             &self.reference,
             &self.integration,
             &self.state.displacement,
+            &self.state.material_history,
         )
     }
 
@@ -882,15 +880,16 @@ where
             displacement: Some(u),
             ..Default::default()
         };
-        assembly::internal_forces_and_tangent::<D>(
+        assembly::integrate::<D>(
             &self.table,
             None,
             &self.reference,
             &self.integration,
             &fields,
+            &self.state.material_history,
             u.len(),
         )
-        .0
+        .forces
     }
 
     /// Whether Newton assembles the internal forces and the tangent every iteration.

@@ -65,6 +65,8 @@ pub(super) struct Solution<const D: usize> {
     pub iterations: usize,
     /// Final relative residual.
     pub relative: f64,
+    /// The material history at the end of the step (the law's at the solution).
+    pub material_history: Vec<f64>,
 }
 
 impl<const D: usize> Simulation<D>
@@ -142,6 +144,7 @@ where
         let mut backtracks = 0;
         let general = self.uses_general_path();
         let mut tangent_values: Vec<f64> = Vec::new();
+        let mut material_history = self.state.material_history.clone();
         loop {
             let x_gap = end_positions(&self.reference, u0, v0, &v1, h);
             if contact_in_newton {
@@ -199,7 +202,7 @@ where
                 let v_alpha: Vec<f64> = (0..ndof)
                     .map(|i| (1.0 - alpha) * v0[i] + alpha * v1[i])
                     .collect();
-                let (forces, values, _) = assembly::internal_forces_and_tangent(
+                let integrated = assembly::integrate(
                     &self.table,
                     Some(&self.pattern),
                     &self.reference,
@@ -211,10 +214,12 @@ where
                         time_step: h,
                         alpha,
                     },
+                    &self.state.material_history,
                     ndof,
                 );
-                tangent_values = values.unwrap_or_default();
-                forces
+                tangent_values = integrated.tangent.unwrap_or_default();
+                material_history = integrated.history;
+                integrated.forces
             } else {
                 let mut internal = vec![0.0; ndof];
                 assembly::symmetric_mul_add(&self.matrices.stiffness, &u_alpha, 1.0, &mut internal);
@@ -308,6 +313,7 @@ where
                         friction_normals,
                         iterations,
                         relative: rel,
+                        material_history,
                     });
                 }
                 passes += 1;

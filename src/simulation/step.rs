@@ -175,6 +175,7 @@ where
             start.obstacles_t1.iter().map(|o| o.translation).collect();
         let Solution {
             mut v1,
+            ref material_history,
             ref residual,
             ref terms,
             ref vars,
@@ -290,6 +291,7 @@ where
         state.external_work += work;
         state.dissipated_energy += h * terms.dissipation_rate + projection_loss;
         state.obstacle_translations = start.translations_t1.clone();
+        state.material_history.clone_from(material_history);
         state.contact_energy = terms.energy;
         state.multipliers = vars
             .multipliers
@@ -674,6 +676,38 @@ mod tests {
                     b.energies
                 );
             }
+        }
+    }
+
+    /// A law with history through the general path: the state carries the history from step
+    /// to step, and a failed step restores it.
+    #[test]
+    fn material_history_is_state() {
+        use crate::material::tests::TestLaw;
+        let (mut sim, _) = dropped_block(1e8, true, 0);
+        let elastic = crate::material::LinearElastic::new(1e6, 0.3, 1000.0).unwrap();
+        sim.integration[0].law = std::sync::Arc::new(TestLaw {
+            elastic,
+            cubic: 1e8,
+            eta: 1e3,
+            exponent: 0.5,
+        });
+        sim.general_path = true;
+        sim.state.material_history =
+            vec![0.0; assembly::history_len(&sim.table, &sim.integration)];
+        assert_eq!(sim.state.material_history.len(), 24 * 4 * 4, "4 points per Quad4");
+        let mut previous = 0.0;
+        for step in 0..6 {
+            let before = format!("{:?}", sim.state);
+            sim.set_solver_limits(1, 1e-300).unwrap();
+            assert!(sim.step().is_err());
+            assert_eq!(before, format!("{:?}", sim.state), "step {step}: not restored");
+            sim.set_solver_limits(50, 1e-8).unwrap();
+            sim.step().unwrap();
+            // The test law accumulates h * |strain rate| (regularised): it grows every step.
+            let total: f64 = sim.state.material_history.iter().sum();
+            assert!(total > previous, "step {step}: {total} <= {previous}");
+            previous = total;
         }
     }
 }
