@@ -45,7 +45,14 @@ fn assembly(c: &mut Criterion) {
                 &threads,
                 |b, _| {
                     b.iter(|| {
-                        pool.install(|| cell_values::<3>(&table, &pattern, &mesh.nodes, std::slice::from_ref(&body)))
+                        pool.install(|| {
+                            cell_values::<3>(
+                                &table,
+                                &pattern,
+                                &mesh.nodes,
+                                std::slice::from_ref(&body),
+                            )
+                        })
                     })
                 },
             );

@@ -49,7 +49,12 @@ fn main() -> Result<()> {
                 .map(|_| {
                     let t = Instant::now();
                     let v = pool.install(|| {
-                        cell_values::<3>(&table, &pattern, &mesh.nodes, std::slice::from_ref(&integration))
+                        cell_values::<3>(
+                            &table,
+                            &pattern,
+                            &mesh.nodes,
+                            std::slice::from_ref(&integration),
+                        )
                     });
                     std::hint::black_box(v);
                     t.elapsed().as_secs_f64()

@@ -62,26 +62,26 @@ pub(crate) mod solver;
 pub mod time;
 
 pub use error::{Error, Result};
-pub use solver::FillOrdering;
 pub use simulation::{Simulation, Simulation2, Simulation3};
+pub use solver::FillOrdering;
 
 /// The types most programs need.
 pub mod prelude {
+    pub use crate::contact::{ContactMethod, ContactSettings, Obstacle, ObstacleShape};
     pub use crate::dim::{Dim, Kinematics, SpatialDim};
     pub use crate::element::ElementKind;
     pub use crate::error::{Error, Result};
+    pub use crate::friction::FrictionLaw;
     pub use crate::material::{LinearElastic, Material};
     pub use crate::mesh::generators::{annulus, cuboid, extrude, polygon, rectangle};
     pub use crate::mesh::Mesh;
     pub use crate::simulation::observe::{NullRecorder, Recorder};
-    pub use crate::contact::{ContactMethod, ContactSettings, Obstacle, ObstacleShape};
-    pub use crate::friction::FrictionLaw;
     pub use crate::simulation::{
         Body, BodyId, Energies, MassKind, Model, Settings, Simulation, Simulation2, Simulation3,
         SimulationBuilder, State, StepReport,
     };
-    pub use crate::FillOrdering;
     pub use crate::time::{Beta, SpaceTimeScheme};
+    pub use crate::FillOrdering;
 }
 
 // The README's and the book's Rust examples run as doc tests (mdBook cannot link crates).

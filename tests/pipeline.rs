@@ -85,7 +85,10 @@ where
                 let before = bits(interrupted.state());
                 interrupted.set_solver_limits(1, 1e-300).unwrap();
                 let failure = interrupted.step();
-                assert!(failure.is_err(), "{method:?} step {step}: the step should fail");
+                assert!(
+                    failure.is_err(),
+                    "{method:?} step {step}: the step should fail"
+                );
                 assert_eq!(
                     before,
                     bits(interrupted.state()),

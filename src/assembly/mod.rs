@@ -653,21 +653,22 @@ where
         let mut local = vec![0.0; count * m];
         let mut energies = vec![0.0; count];
         let mut histories = vec![0.0; count * hp.max(1)];
-        let mut k_seg: Option<&mut [f64]> = tangent
+        let k_seg: Option<&mut [f64]> = tangent
             .as_mut()
             .map(|t| &mut t[seg.first_value..seg.first_value + per * count]);
-        let work = |c: usize, fl: &mut [f64], e: &mut f64, hl: &mut [f64], k: Option<&mut [f64]>| {
-            let cell = table.cell(seg.cells.start + c, seg.kind);
-            let out = CellOutput {
-                history: seg_history.get(c * hp..(c + 1) * hp).unwrap_or(&[]),
-                new_history: (hp > 0).then_some(hl),
-                tangent: k,
-                force: Some(fl),
-                energy: Some(e),
-                ..Default::default()
+        let work =
+            |c: usize, fl: &mut [f64], e: &mut f64, hl: &mut [f64], k: Option<&mut [f64]>| {
+                let cell = table.cell(seg.cells.start + c, seg.kind);
+                let out = CellOutput {
+                    history: seg_history.get(c * hp..(c + 1) * hp).unwrap_or(&[]),
+                    new_history: (hp > 0).then_some(hl),
+                    tangent: k,
+                    force: Some(fl),
+                    energy: Some(e),
+                    ..Default::default()
+                };
+                cell_kernel::<D>(seg.kind, cell, x, body, fields, out);
             };
-            cell_kernel::<D>(seg.kind, cell, x, body, fields, out);
-        };
         #[cfg(feature = "parallel")]
         {
             use rayon::prelude::*;
@@ -675,7 +676,7 @@ where
                 .par_chunks_mut(m)
                 .zip(energies.par_iter_mut())
                 .zip(histories.par_chunks_mut(hp.max(1)));
-            match k_seg.as_deref_mut() {
+            match k_seg {
                 Some(k) => cells
                     .zip(k.par_chunks_mut(per))
                     .enumerate()
@@ -687,7 +688,7 @@ where
         }
         #[cfg(not(feature = "parallel"))]
         {
-            let mut k_chunks = k_seg.as_deref_mut().map(|k| k.chunks_mut(per));
+            let mut k_chunks = k_seg.map(|k| k.chunks_mut(per));
             let cells = local
                 .chunks_mut(m)
                 .zip(energies.iter_mut())

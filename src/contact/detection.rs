@@ -227,7 +227,6 @@ pub struct ContactPair<const D: usize> {
     pub feature: Feature,
 }
 
-
 /// A facet obstacle's geometry in its frame at zero translation, with its hierarchy.
 struct ObstacleFacets<const D: usize>
 where
@@ -610,82 +609,75 @@ where
             &self.candidates,
         );
         let activation = options.margin;
-        let results: Vec<(ContactPair<D>, MasterId, usize, bool)> = map_chunks(
-            &groups,
-            |_, gs| {
-                let mut out = Vec::new();
-                for &(a, b) in gs {
-                    let node = cands[a].0;
-                    let p = x[node];
-                    let mut i = a;
-                    while i < b {
-                        match cands[i].1 {
-                            Master::Obstacle(k) => {
-                                i += 1;
-                                let Some(o) = obstacles.get(k) else { continue };
-                                let key = MasterId::Obstacle(k);
-                                let prev = previous.get(&(node, key)).copied();
-                                if let Some((pair, choice)) = obstacle_pair(
-                                    o,
-                                    cache[k].as_ref(),
-                                    &p,
-                                    prev,
-                                    options.hysteresis,
-                                ) {
-                                    let pair = ContactPair {
-                                        slave: node,
-                                        master: Master::Obstacle(k),
-                                        ..pair
-                                    };
-                                    out.push((pair, key, choice, pair.gap < activation));
-                                }
+        let results: Vec<(ContactPair<D>, MasterId, usize, bool)> = map_chunks(&groups, |_, gs| {
+            let mut out = Vec::new();
+            for &(a, b) in gs {
+                let node = cands[a].0;
+                let p = x[node];
+                let mut i = a;
+                while i < b {
+                    match cands[i].1 {
+                        Master::Obstacle(k) => {
+                            i += 1;
+                            let Some(o) = obstacles.get(k) else { continue };
+                            let key = MasterId::Obstacle(k);
+                            let prev = previous.get(&(node, key)).copied();
+                            if let Some((pair, choice)) =
+                                obstacle_pair(o, cache[k].as_ref(), &p, prev, options.hysteresis)
+                            {
+                                let pair = ContactPair {
+                                    slave: node,
+                                    master: Master::Obstacle(k),
+                                    ..pair
+                                };
+                                out.push((pair, key, choice, pair.gap < activation));
                             }
-                            Master::Facet(f0) => {
-                                let body = surface.facet_body[f0];
-                                let mut j = i;
-                                while j < b
-                                    && matches!(cands[j].1, Master::Facet(f) if surface.facet_body[f] == body)
-                                {
-                                    j += 1;
-                                }
-                                let key = MasterId::Body(body);
-                                let prev = previous.get(&(node, key)).copied();
-                                // Only facets facing the node (opposed normals): always for
-                                // self-contact, between bodies with `facing`.
-                                let own = (options.facing
-                                    || body == surface.facet_body[surface.facets_of_node(node)[0]])
-                                    .then(|| surface.node_normal(node, x));
-                                let choice = choose(
-                                    &p,
-                                    cands[i..j].iter().map(|c| match c.1 {
-                                        Master::Facet(f) => f,
-                                        Master::Obstacle(_) => unreachable!("facets only"),
-                                    }),
-                                    |f| surface.facets[f].map(|v| x[v]),
-                                    |n| own.is_none_or(|nn| nn.dot(n) < 0.0),
-                                    prev,
-                                    options.hysteresis,
-                                );
-                                if let Some(c) = choice {
-                                    let pair = ContactPair {
-                                        slave: node,
-                                        master: Master::Facet(c.facet),
-                                        gap: c.gap,
-                                        normal: c.normal,
-                                        point: c.point,
-                                        barycentric: c.barycentric,
-                                        feature: c.feature,
-                                    };
-                                    out.push((pair, key, c.facet, c.gap < activation));
-                                }
-                                i = j;
+                        }
+                        Master::Facet(f0) => {
+                            let body = surface.facet_body[f0];
+                            let mut j = i;
+                            while j < b
+                                && matches!(cands[j].1, Master::Facet(f) if surface.facet_body[f] == body)
+                            {
+                                j += 1;
                             }
+                            let key = MasterId::Body(body);
+                            let prev = previous.get(&(node, key)).copied();
+                            // Only facets facing the node (opposed normals): always for
+                            // self-contact, between bodies with `facing`.
+                            let own = (options.facing
+                                || body == surface.facet_body[surface.facets_of_node(node)[0]])
+                                .then(|| surface.node_normal(node, x));
+                            let choice = choose(
+                                &p,
+                                cands[i..j].iter().map(|c| match c.1 {
+                                    Master::Facet(f) => f,
+                                    Master::Obstacle(_) => unreachable!("facets only"),
+                                }),
+                                |f| surface.facets[f].map(|v| x[v]),
+                                |n| own.is_none_or(|nn| nn.dot(n) < 0.0),
+                                prev,
+                                options.hysteresis,
+                            );
+                            if let Some(c) = choice {
+                                let pair = ContactPair {
+                                    slave: node,
+                                    master: Master::Facet(c.facet),
+                                    gap: c.gap,
+                                    normal: c.normal,
+                                    point: c.point,
+                                    barycentric: c.barycentric,
+                                    feature: c.feature,
+                                };
+                                out.push((pair, key, c.facet, c.gap < activation));
+                            }
+                            i = j;
                         }
                     }
                 }
-                out
-            },
-        );
+            }
+            out
+        });
         self.previous = results
             .iter()
             .map(|(p, key, choice, _)| ((p.slave, *key), *choice))

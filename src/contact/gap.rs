@@ -25,7 +25,10 @@ pub struct FacetGap<const D: usize> {
 }
 
 /// The gap of `x` to the plane of the facet with vertices `y`; `None` for a degenerate facet.
-pub fn facet_gap<const D: usize>(x: &SVector<f64, D>, y: &[SVector<f64, D>; D]) -> Option<FacetGap<D>>
+pub fn facet_gap<const D: usize>(
+    x: &SVector<f64, D>,
+    y: &[SVector<f64, D>; D],
+) -> Option<FacetGap<D>>
 where
     Dim<D>: SpatialDim<D>,
 {

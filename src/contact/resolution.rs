@@ -107,4 +107,3 @@ impl ContactSettings {
         self.friction.validate()
     }
 }
-

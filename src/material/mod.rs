@@ -270,8 +270,7 @@ pub(crate) mod tests {
             let stiffness = c
                 + VoigtMatrix::identity() * (self.cubic * ee)
                 + e * e.transpose() * (2.0 * self.cubic);
-            let viscosity = (VoigtMatrix::identity()
-                + r * r.transpose() * ((m - 1.0) / (s * s)))
+            let viscosity = (VoigtMatrix::identity() + r * r.transpose() * ((m - 1.0) / (s * s)))
                 * (self.eta * s.powf(m - 1.0));
             new_history[0] = history[0] + point.time_step * s;
             PointResponse {

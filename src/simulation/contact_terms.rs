@@ -90,7 +90,10 @@ where
     /// Each boundary node's shares of the surface [m^2] at positions `x`, with the outward
     /// normal of the face each share comes from (length x unit thickness in plane kinematics,
     /// `2 pi r` x length in axisymmetric ones).
-    pub(super) fn tributary_areas(&self, x: &[SVector<f64, D>]) -> Vec<Vec<(f64, SVector<f64, D>)>> {
+    pub(super) fn tributary_areas(
+        &self,
+        x: &[SVector<f64, D>],
+    ) -> Vec<Vec<(f64, SVector<f64, D>)>> {
         let mut shares: Vec<Vec<(f64, SVector<f64, D>)>> = vec![Vec::new(); x.len()];
         let axisymmetric = self.model.settings.kinematics == Kinematics::Axisymmetric;
         for face in &self.boundary_faces {
@@ -219,12 +222,13 @@ where
                 normal_velocity,
                 area,
                 time_step: h,
-                diagonal: (0..D).map(|k| input.diagonal[s * D + k]).fold(0.0, f64::max),
+                diagonal: (0..D)
+                    .map(|k| input.diagonal[s * D + k])
+                    .fold(0.0, f64::max),
             };
-            let normal_law =
-                input
-                    .method
-                    .normal_law(&law_input, input.vars, &self.model.contact);
+            let normal_law = input
+                .method
+                .normal_law(&law_input, input.vars, &self.model.contact);
             let (normal_force, normal_stiffness, pressure) =
                 (normal_law.force, normal_law.stiffness, normal_law.pressure);
             // Friction takes the normal force of the previous pass (a fixed point on the
@@ -260,8 +264,7 @@ where
                             Some(facet_gap_hessian::<D>(&x_gap[s], &y))
                         }
                         Master::Obstacle(k) => {
-                            let hs =
-                                obstacle_gap_hessian(&input.obstacles_t1[k], pair, &x_gap[s]);
+                            let hs = obstacle_gap_hessian(&input.obstacles_t1[k], pair, &x_gap[s]);
                             Some(
                                 (0..D)
                                     .map(|i| (0..D).map(|j| hs[(i, j)]).collect())

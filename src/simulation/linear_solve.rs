@@ -134,7 +134,12 @@ where
 {
     /// Factors the contact-free iteration matrix for step size `h` unless it already is.
     pub(super) fn ensure_system(&mut self, h: f64) -> Result<()> {
-        if self.caches.system.as_ref().is_some_and(|s| s.time_step == h) {
+        if self
+            .caches
+            .system
+            .as_ref()
+            .is_some_and(|s| s.time_step == h)
+        {
             return Ok(());
         }
         let (_, d1) = self.model.settings.scheme.displacement_weights();
@@ -369,7 +374,12 @@ where
             .contact_factors
             .retain(|f| records.iter().any(|r| r.id == f.id));
         for record in &records {
-            if self.caches.contact_factors.iter().any(|f| f.id == record.id) {
+            if self
+                .caches
+                .contact_factors
+                .iter()
+                .any(|f| f.id == record.id)
+            {
                 continue;
             }
             self.ensure_system(record.time_step)?;
@@ -506,7 +516,12 @@ where
             if record.time_step != system.time_step {
                 continue;
             }
-            let Some(f) = self.caches.contact_factors.iter().find(|f| f.id == record.id) else {
+            let Some(f) = self
+                .caches
+                .contact_factors
+                .iter()
+                .find(|f| f.id == record.id)
+            else {
                 continue;
             };
             let c = strong_changes(&system.diagonal, Some(&f.diagonal), &now);

@@ -659,7 +659,11 @@ where
 
     /// The handle of the body called `name`.
     pub fn body_id(&self, name: &str) -> Option<BodyId> {
-        self.model.bodies.iter().position(|b| b.name == name).map(BodyId)
+        self.model
+            .bodies
+            .iter()
+            .position(|b| b.name == name)
+            .map(BodyId)
     }
 
     /// The state (time, displacements, velocities, works).
@@ -812,20 +816,7 @@ where
         Energies {
             kinetic: 0.5 * assembly::symmetric_dot(&self.matrices.mass, &s.velocity, &s.velocity),
             internal: if self.general_path {
-                let fields = assembly::KernelFields {
-                    displacement: Some(&s.displacement),
-                    ..Default::default()
-                };
-                assembly::integrate::<D>(
-                    &self.table,
-                    None,
-                    &self.reference,
-                    &self.integration,
-                    &fields,
-                    &s.material_history,
-                    s.displacement.len(),
-                )
-                .energy
+                self.integrate_at(&s.displacement).energy
             } else {
                 0.5 * self.strain_energy_product(&s.displacement)
             },
@@ -876,6 +867,11 @@ where
     /// Internal forces of displacements `u` (flat, D per node) integrated from the element
     /// stresses [N].
     pub fn internal_forces(&self, u: &[f64]) -> Vec<f64> {
+        self.integrate_at(u).forces
+    }
+
+    /// The element integrals at displacements `u` (zero strain rate) with the state's history.
+    fn integrate_at(&self, u: &[f64]) -> assembly::Integrated {
         let fields = assembly::KernelFields {
             displacement: Some(u),
             ..Default::default()
@@ -889,7 +885,6 @@ where
             &self.state.material_history,
             u.len(),
         )
-        .forces
     }
 
     /// Whether Newton assembles the internal forces and the tangent every iteration.

@@ -273,13 +273,10 @@ where
                 // Newton converged for the current outer variables.
                 let statuses: Vec<PairStatus> = terms.pairs.iter().map(PairStatus::from).collect();
                 let mut messages = Vec::new();
-                let outcome = method.outer_update(
-                    &statuses,
-                    &mut vars,
-                    &self.model.contact,
-                    h,
-                    &mut |m| messages.push(m),
-                );
+                let outcome =
+                    method.outer_update(&statuses, &mut vars, &self.model.contact, h, &mut |m| {
+                        messages.push(m)
+                    });
                 for m in messages {
                     recorder.log(self, &format!("step {step}: {m}"));
                 }
@@ -337,7 +334,8 @@ where
             if general {
                 let mut entries = terms.entries.clone();
                 entries.extend_from_slice(&terms.geometric);
-                increment = self.solve_with_tangent(&tangent_values, &entries, &increment, h, step)?;
+                increment =
+                    self.solve_with_tangent(&tangent_values, &entries, &increment, h, step)?;
             } else if terms.entries.is_empty() {
                 self.solve_contact_free(&mut increment);
             } else if let Some(x) =

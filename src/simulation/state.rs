@@ -5,8 +5,8 @@
 
 use serde::{Deserialize, Serialize};
 
-pub use crate::contact::MasterId;
 use crate::contact::ContactKey;
+pub use crate::contact::MasterId;
 
 /// The evolving state: one serialisable value.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -75,6 +75,3 @@ pub struct FactorRecord {
     /// Whether it was factored in single precision.
     pub single_precision: bool,
 }
-
-
-

@@ -348,22 +348,19 @@ where
         recorder.step_end(self, &report);
         Ok(report)
     }
-
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::contact::methods::OuterVariables;
-    use crate::contact::{
-        ContactMethod, ContactSettings, FrictionLaw, MasterId, ObstacleShape,
-    };
-    use crate::simulation::contact_terms::TermsInput;
-    use std::collections::BTreeMap;
+    use crate::contact::{ContactMethod, ContactSettings, FrictionLaw, MasterId, ObstacleShape};
     use crate::material::{LinearElastic, Material};
     use crate::mesh::generators::rectangle;
+    use crate::simulation::contact_terms::TermsInput;
     use crate::simulation::{Body, Simulation2};
     use nalgebra::Vector2;
+    use std::collections::BTreeMap;
 
     /// The contact forces and the assembled tangent at end velocities `v1`.
     fn forces_and_tangent(
@@ -650,11 +647,18 @@ mod tests {
                 for _ in 0..8 {
                     reports.push(sim.step().unwrap());
                 }
-                (sim.state.velocity.clone(), sim.state.displacement.clone(), reports)
+                (
+                    sim.state.velocity.clone(),
+                    sim.state.displacement.clone(),
+                    reports,
+                )
             };
             let (v_fast, u_fast, r_fast) = run(false);
             let (v_general, u_general, r_general) = run(true);
-            assert!(r_fast.iter().any(|r| r.active_contacts > 0), "{method:?}: no contact");
+            assert!(
+                r_fast.iter().any(|r| r.active_contacts > 0),
+                "{method:?}: no contact"
+            );
             let scale = v_fast.iter().fold(0.0f64, |m, v| m.max(v.abs()));
             let dv = v_fast
                 .iter()
@@ -665,8 +669,14 @@ mod tests {
                 .zip(&u_general)
                 .fold(0.0f64, |m, (a, b)| m.max((a - b).abs()));
             // Both are Newton solutions to the same tolerance (1e-8 of the force scale).
-            assert!(dv < 1e-6 * scale, "{method:?}: velocities differ by {dv:e} of {scale:e}");
-            assert!(du < 1e-6 * scale * 1e-3 * 8.0, "{method:?}: displacements differ by {du:e}");
+            assert!(
+                dv < 1e-6 * scale,
+                "{method:?}: velocities differ by {dv:e} of {scale:e}"
+            );
+            assert!(
+                du < 1e-6 * scale * 1e-3 * 8.0,
+                "{method:?}: displacements differ by {du:e}"
+            );
             for (a, b) in r_fast.iter().zip(&r_general) {
                 let e = a.energies.total().abs().max(1e-12);
                 assert!(
@@ -693,15 +703,22 @@ mod tests {
             exponent: 0.5,
         });
         sim.general_path = true;
-        sim.state.material_history =
-            vec![0.0; assembly::history_len(&sim.table, &sim.integration)];
-        assert_eq!(sim.state.material_history.len(), 24 * 4 * 4, "4 points per Quad4");
+        sim.state.material_history = vec![0.0; assembly::history_len(&sim.table, &sim.integration)];
+        assert_eq!(
+            sim.state.material_history.len(),
+            24 * 4 * 4,
+            "4 points per Quad4"
+        );
         let mut previous = 0.0;
         for step in 0..6 {
             let before = format!("{:?}", sim.state);
             sim.set_solver_limits(1, 1e-300).unwrap();
             assert!(sim.step().is_err());
-            assert_eq!(before, format!("{:?}", sim.state), "step {step}: not restored");
+            assert_eq!(
+                before,
+                format!("{:?}", sim.state),
+                "step {step}: not restored"
+            );
             sim.set_solver_limits(50, 1e-8).unwrap();
             sim.step().unwrap();
             // The test law accumulates h * |strain rate| (regularised): it grows every step.
