@@ -42,6 +42,7 @@ pub mod dim;
 pub mod element;
 pub mod error;
 pub mod geometry;
+#[cfg(feature = "formats")]
 pub mod io;
 pub mod material;
 pub mod mesh;
