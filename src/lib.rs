@@ -49,6 +49,7 @@ pub mod element;
 pub mod error;
 pub mod friction;
 pub mod geometry;
+#[cfg(feature = "formats")]
 pub mod io;
 pub mod material;
 pub mod mesh;

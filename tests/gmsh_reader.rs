@@ -3,7 +3,7 @@
 
 use std::path::PathBuf;
 
-use softway::mesh::gmsh::{parse_gmsh, read_gmsh, GmshCellKind, GmshError, GmshMesh};
+use softway::io::gmsh::{parse_gmsh, read_gmsh, GmshCellKind, GmshError, GmshMesh};
 
 const ENCODINGS: [&str; 4] = ["v22_ascii", "v22_bin", "v41_ascii", "v41_bin"];
 /// Domain extents used by `make_meshes.py`.

@@ -1,12 +1,15 @@
-//! Tests of the VTK writers: read back with vtkio (pure Rust), and, when Python has them, with
-//! meshio (values round-trip) and pyvista/VTK (cell volumes, i.e. node ordering; .pvd).
+//! Tests of the VTK writers: read back with an XML parser (`quick-xml`) and a base64 decoder
+//! here, and, when Python has them, with meshio (values round-trip) and pyvista/VTK (cell
+//! volumes, i.e. node ordering; .pvd).
 
+use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
+use quick_xml::events::{BytesStart, Event};
+use quick_xml::XmlVersion;
+use softway::io::gmsh::{read_gmsh, GmshCellKind};
 use softway::io::vtk::{write_pvd, write_vtu, VtkCellKind, VtkField, VtkPiece};
-use softway::mesh::gmsh::{read_gmsh, GmshCellKind};
-use vtkio::model::{Attribute, DataSet, Piece, VertexNumbers};
 
 /// A small mixed mesh: a unit cube hexahedron (points 0-7), a tetrahedron on top of it (8),
 /// a quad and a triangle beside it, and a line.
@@ -97,22 +100,143 @@ fn write_mixed(path: &Path, m: &Mixed) {
     write_vtu(path, &piece).expect("write_vtu");
 }
 
-fn data_array(attrs: &[Attribute], name: &str) -> (u32, Vec<f64>) {
-    for a in attrs {
-        if let Attribute::DataArray(d) = a {
-            if d.name == name {
-                return (
-                    d.elem.num_comp(),
-                    d.data.clone().into_vec::<f64>().expect("f64 data"),
-                );
+/// The attributes of an element, unescaped.
+fn attributes(e: &BytesStart) -> BTreeMap<String, String> {
+    e.attributes()
+        .map(|a| {
+            let a = a.expect("well-formed attribute");
+            let key = a.key.as_ref().to_string();
+            let value = a.normalized_value(XmlVersion::Explicit1_0).expect("value");
+            (key, value.into_owned())
+        })
+        .collect()
+}
+
+/// Standard base64 with padding (what VTK's inline "binary" format uses).
+fn base64_decode(text: &str) -> Vec<u8> {
+    let value = |c: u8| -> u32 {
+        match c {
+            b'A'..=b'Z' => u32::from(c - b'A'),
+            b'a'..=b'z' => u32::from(c - b'a') + 26,
+            b'0'..=b'9' => u32::from(c - b'0') + 52,
+            b'+' => 62,
+            b'/' => 63,
+            other => panic!("not base64: {:?}", other as char),
+        }
+    };
+    let text = text.trim().as_bytes();
+    assert_eq!(text.len() % 4, 0, "base64 comes in groups of 4");
+    let mut out = Vec::new();
+    for group in text.chunks(4) {
+        let pad = group.iter().filter(|&&c| c == b'=').count();
+        let n = group[..4 - pad]
+            .iter()
+            .enumerate()
+            .fold(0u32, |n, (k, &c)| n | (value(c) << (18 - 6 * k)));
+        out.extend_from_slice(&n.to_be_bytes()[1..4 - pad]);
+    }
+    out
+}
+
+/// A `<DataArray>` read back: where it is, its attributes and its decoded bytes (the UInt64
+/// byte-count header checked and removed).
+#[derive(Debug)]
+struct Array {
+    /// The enclosing element: PointData, CellData, Points or Cells.
+    section: String,
+    attributes: BTreeMap<String, String>,
+    bytes: Vec<u8>,
+}
+
+impl Array {
+    fn f64s(&self) -> Vec<f64> {
+        assert_eq!(self.attributes["type"], "Float64");
+        let chunks = self.bytes.chunks_exact(8);
+        chunks
+            .map(|c| f64::from_le_bytes(c.try_into().unwrap()))
+            .collect()
+    }
+
+    fn u64s(&self) -> Vec<u64> {
+        assert_eq!(self.attributes["type"], "UInt64");
+        let chunks = self.bytes.chunks_exact(8);
+        chunks
+            .map(|c| u64::from_le_bytes(c.try_into().unwrap()))
+            .collect()
+    }
+
+    fn components(&self) -> usize {
+        self.attributes
+            .get("NumberOfComponents")
+            .map_or(1, |n| n.parse().expect("integer"))
+    }
+}
+
+/// Parses a `.vtu` as XML: the root's and the piece's attributes, and every data array.
+fn read_vtu(
+    text: &str,
+) -> (
+    BTreeMap<String, String>,
+    BTreeMap<String, String>,
+    Vec<Array>,
+) {
+    let mut reader = quick_xml::Reader::from_str(text);
+    let (mut root, mut piece, mut arrays) = (BTreeMap::new(), BTreeMap::new(), Vec::new());
+    let mut stack: Vec<String> = Vec::new();
+    let mut current: Option<Array> = None;
+    loop {
+        match reader.read_event().expect("well-formed XML") {
+            Event::Start(e) | Event::Empty(e) if e.name().as_ref() == "DataArray" => {
+                assert!(current.is_none(), "nested DataArray");
+                current = Some(Array {
+                    section: stack.last().cloned().expect("inside a section"),
+                    attributes: attributes(&e),
+                    bytes: Vec::new(),
+                });
+                stack.push("DataArray".into());
             }
+            Event::Start(e) => {
+                let name = e.name().as_ref().to_string();
+                match name.as_str() {
+                    "VTKFile" => root = attributes(&e),
+                    "Piece" => piece = attributes(&e),
+                    _ => {}
+                }
+                stack.push(name);
+            }
+            Event::Text(t) => {
+                if let Some(a) = current.as_mut() {
+                    let bytes = base64_decode(&t.xml10_content());
+                    let (header, data) = bytes.split_at(8);
+                    let count = u64::from_le_bytes(header.try_into().unwrap());
+                    assert_eq!(count as usize, data.len(), "UInt64 byte-count header");
+                    a.bytes = data.to_vec();
+                }
+            }
+            Event::End(e) => {
+                let name = stack.pop().expect("balanced tags");
+                assert_eq!(e.name().as_ref(), name);
+                if name == "DataArray" {
+                    arrays.push(current.take().expect("open DataArray"));
+                }
+            }
+            Event::Eof => break,
+            _ => {}
         }
     }
-    panic!("no array {name:?}");
+    assert!(stack.is_empty(), "unclosed {stack:?}");
+    (root, piece, arrays)
+}
+
+fn array<'a>(arrays: &'a [Array], section: &str, name: Option<&str>) -> &'a Array {
+    arrays
+        .iter()
+        .find(|a| a.section == section && a.attributes.get("Name").map(String::as_str) == name)
+        .unwrap_or_else(|| panic!("no array {name:?} in {section}"))
 }
 
 #[test]
-fn vtu_round_trips_through_vtkio() {
+fn vtu_reads_back_as_xml() {
     let dir = tempfile::tempdir().expect("tempdir");
     let path = dir.path().join("mixed.vtu");
     let m = mixed();
@@ -123,51 +247,65 @@ fn vtu_round_trips_through_vtkio() {
     );
     let text = std::fs::read_to_string(&path).expect("read");
     assert!(
-        text.starts_with("<VTKFile type=\"UnstructuredGrid\""),
+        text.starts_with("<?xml version=\"1.0\"?>\n<VTKFile type=\"UnstructuredGrid\""),
         "{}",
         &text[..80]
     );
 
-    let vtk = vtkio::Vtk::import(&path).expect("vtkio reads it back");
-    let DataSet::UnstructuredGrid { pieces, .. } = vtk.data else {
-        panic!("not an unstructured grid")
-    };
-    assert_eq!(pieces.len(), 1);
-    let Piece::Inline(piece) = pieces.into_iter().next().expect("piece") else {
-        panic!("piece not inline")
-    };
-    let points: Vec<f64> = piece.points.clone().into_vec().expect("f64 points");
+    let (root, piece, arrays) = read_vtu(&text);
+    assert_eq!(root["type"], "UnstructuredGrid");
+    assert_eq!(root["version"], "1.0");
+    assert_eq!(root["byte_order"], "LittleEndian");
+    assert_eq!(root["header_type"], "UInt64");
+    assert_eq!(piece["NumberOfPoints"], m.points.len().to_string());
+    assert_eq!(piece["NumberOfCells"], m.cells.len().to_string());
+    assert_eq!(arrays.len(), 8, "{arrays:?}");
+
+    let points = array(&arrays, "Points", None);
+    assert_eq!(points.components(), 3);
     let expected: Vec<f64> = m.points.iter().flatten().copied().collect();
-    assert_eq!(points, expected);
-    let VertexNumbers::XML {
-        connectivity,
-        offsets,
-    } = piece.cells.cell_verts.clone()
-    else {
-        panic!("legacy cells")
-    };
+    assert_eq!(points.f64s(), expected);
     let conn: Vec<u64> = m
         .cells
         .iter()
         .flat_map(|(_, c)| c.iter().map(|&i| i as u64))
         .collect();
-    assert_eq!(connectivity, conn);
-    assert_eq!(offsets, vec![8, 12, 16, 19, 21]);
-    let types: Vec<u8> = piece.cells.types.iter().map(|&t| t as u8).collect();
-    assert_eq!(types, vec![12, 10, 9, 5, 3]);
+    assert_eq!(array(&arrays, "Cells", Some("connectivity")).u64s(), conn);
     assert_eq!(
-        data_array(&piece.data.point, "displacement"),
-        (3, m.u.clone())
+        array(&arrays, "Cells", Some("offsets")).u64s(),
+        vec![8, 12, 16, 19, 21]
     );
-    assert_eq!(
-        data_array(&piece.data.point, "pressure <p> & \"q\""),
-        (1, m.p.clone())
-    );
-    assert_eq!(data_array(&piece.data.cell, "id"), (1, m.id.clone()));
-    assert_eq!(
-        data_array(&piece.data.cell, "stress"),
-        (9, m.stress.clone())
-    );
+    let types = array(&arrays, "Cells", Some("types"));
+    assert_eq!(types.attributes["type"], "UInt8");
+    assert_eq!(types.bytes, vec![12, 10, 9, 5, 3]);
+    for (section, name, components, values) in [
+        ("PointData", "displacement", 3, &m.u),
+        ("PointData", "pressure <p> & \"q\"", 1, &m.p),
+        ("CellData", "id", 1, &m.id),
+        ("CellData", "stress", 9, &m.stress),
+    ] {
+        let a = array(&arrays, section, Some(name));
+        assert_eq!((a.components(), &a.f64s()), (components, values), "{name}");
+    }
+}
+
+#[test]
+fn vtu_without_fields_or_cells() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let path = dir.path().join("empty.vtu");
+    let piece = VtkPiece {
+        points: &[[0.5, -1.0, 2.0]],
+        cells: &[],
+        point_data: &[],
+        cell_data: &[],
+    };
+    write_vtu(&path, &piece).expect("write");
+    let text = std::fs::read_to_string(&path).expect("read");
+    let (_, piece, arrays) = read_vtu(&text);
+    assert_eq!(piece["NumberOfPoints"], "1");
+    assert_eq!(piece["NumberOfCells"], "0");
+    assert_eq!(array(&arrays, "Points", None).f64s(), vec![0.5, -1.0, 2.0]);
+    assert!(array(&arrays, "Cells", Some("offsets")).bytes.is_empty());
 }
 
 #[test]
@@ -187,6 +325,22 @@ fn pvd_structure() {
     assert!(text.contains("timestep=\"1e-300\""));
     assert!(text.contains("file=\"odd &amp; &lt;name&gt;.vtu\""));
     assert!(text.trim_end().ends_with("</VTKFile>"));
+    let mut reader = quick_xml::Reader::from_str(&text);
+    let mut files = Vec::new();
+    loop {
+        match reader.read_event().expect("well-formed XML") {
+            Event::Empty(e) if e.name().as_ref() == "DataSet" => {
+                let a = attributes(&e);
+                files.push((
+                    a["timestep"].parse::<f64>().expect("time"),
+                    a["file"].clone(),
+                ));
+            }
+            Event::Eof => break,
+            _ => {}
+        }
+    }
+    assert_eq!(files, entries);
     let bad = write_pvd(&path, &[(f64::NAN, "x.vtu".into())]).expect_err("NaN time");
     assert_eq!(bad.kind(), std::io::ErrorKind::InvalidInput);
 }

@@ -1,5 +1,7 @@
-//! Input and output: scene files, history CSV, summary JSON, VTK.
+//! Input and output (feature `formats`): scene files, Gmsh meshes, history CSV, summary JSON,
+//! VTK.
 
+pub mod gmsh;
 pub mod output;
 pub mod scene;
 pub mod vtk;

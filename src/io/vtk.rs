@@ -1,8 +1,9 @@
 //! VTK output: XML unstructured grids (`.vtu`) and ParaView collections (`.pvd`).
 //!
-//! `.vtu` files are produced by the `vtkio` crate (XML, `Float64` data, base64 "binary"
-//! inline arrays with `UInt64` headers, little-endian); meshio, pyvista/VTK and ParaView read
-//! them. `.pvd` files are a few lines of XML written here.
+//! Both are a few lines of XML written here. `.vtu` data arrays are `Float64` (points and
+//! fields), `UInt64` (connectivity, offsets) and `UInt8` (cell types), in VTK's inline "binary"
+//! format: base64 of a little-endian `UInt64` byte count followed by the values (XML format
+//! version 1.0, `header_type="UInt64"`). ParaView, VTK/pyvista and meshio read them.
 //!
 //! Both writers write `<path>.tmp` and rename it over `<path>`, so a viewer polling the
 //! output never sees a half-written file.
@@ -16,11 +17,6 @@ use std::ffi::OsString;
 use std::fs::File;
 use std::io::{self, BufWriter, Write};
 use std::path::{Path, PathBuf};
-
-use vtkio::model::{
-    Attribute, Attributes, ByteOrder, CellType, Cells, DataSet, UnstructuredGridPiece, Version,
-    VertexNumbers, Vtk,
-};
 
 /// Linear cell kinds that can be written.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -56,16 +52,6 @@ impl VtkCellKind {
             Self::Tri3 => 3,
             Self::Quad4 | Self::Tet4 => 4,
             Self::Hex8 => 8,
-        }
-    }
-
-    fn cell_type(self) -> CellType {
-        match self {
-            Self::Line2 => CellType::Line,
-            Self::Tri3 => CellType::Triangle,
-            Self::Quad4 => CellType::Quad,
-            Self::Tet4 => CellType::Tetra,
-            Self::Hex8 => CellType::Hexahedron,
         }
     }
 }
@@ -137,19 +123,16 @@ fn check_fields(fields: &[VtkField<'_>], n: usize, what: &str) -> io::Result<()>
     Ok(())
 }
 
-fn attributes(fields: &[VtkField<'_>]) -> Vec<Attribute> {
-    fields
-        .iter()
-        .map(|f| {
-            // check_fields keeps `components` within u32 (VTK's NumberOfComponents type).
-            let comps = u32::try_from(f.components).unwrap_or(u32::MAX);
-            Attribute::generic(f.name, comps).with_data(f.values.to_vec())
-        })
-        .collect()
+/// The checked piece in the arrays of a `.vtu` file.
+#[derive(Debug)]
+struct Arrays {
+    connectivity: Vec<u64>,
+    offsets: Vec<u64>,
+    types: Vec<u8>,
 }
 
-/// Build the vtkio model after checking the piece for consistency.
-fn to_model(piece: &VtkPiece<'_>) -> io::Result<Vtk> {
+/// Check the piece for consistency and flatten its cells.
+fn to_arrays(piece: &VtkPiece<'_>) -> io::Result<Arrays> {
     let n_points = piece.points.len();
     let mut connectivity = Vec::new();
     let mut offsets = Vec::with_capacity(piece.cells.len());
@@ -169,33 +152,124 @@ fn to_model(piece: &VtkPiece<'_>) -> io::Result<Vtk> {
         }
         connectivity.extend(nodes.iter().map(|&i| i as u64));
         offsets.push(connectivity.len() as u64);
-        types.push(kind.cell_type());
+        types.push(kind.vtk_type());
     }
     check_fields(piece.point_data, n_points, "point")?;
     check_fields(piece.cell_data, piece.cells.len(), "cell")?;
-
-    let points: Vec<f64> = piece.points.iter().flatten().copied().collect();
-    Ok(Vtk {
-        // XML format version 1.0: needed for the UInt64 headers vtkio writes.
-        version: Version::new((1, 0)),
-        byte_order: ByteOrder::LittleEndian,
-        title: String::new(),
-        file_path: None,
-        data: DataSet::inline(UnstructuredGridPiece {
-            points: points.into(),
-            cells: Cells {
-                cell_verts: VertexNumbers::XML {
-                    connectivity,
-                    offsets,
-                },
-                types,
-            },
-            data: Attributes {
-                point: attributes(piece.point_data),
-                cell: attributes(piece.cell_data),
-            },
-        }),
+    Ok(Arrays {
+        connectivity,
+        offsets,
+        types,
     })
+}
+
+/// Standard base64 (RFC 4648, with padding).
+fn base64(bytes: &[u8]) -> String {
+    const ALPHABET: &[u8; 64] = b"ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+    let mut out = String::with_capacity(bytes.len().div_ceil(3) * 4);
+    for chunk in bytes.chunks(3) {
+        let b = [
+            chunk[0],
+            chunk.get(1).copied().unwrap_or(0),
+            chunk.get(2).copied().unwrap_or(0),
+        ];
+        let n = (u32::from(b[0]) << 16) | (u32::from(b[1]) << 8) | u32::from(b[2]);
+        for k in 0..4 {
+            if k <= chunk.len() {
+                out.push(char::from(ALPHABET[(n >> (18 - 6 * k)) as usize & 63]));
+            } else {
+                out.push('=');
+            }
+        }
+    }
+    out
+}
+
+/// One `<DataArray>` in VTK's inline binary format: base64 of the `UInt64` byte count and the
+/// little-endian values.
+fn data_array<T: Copy>(
+    w: &mut impl Write,
+    vtk_type: &str,
+    name: Option<&str>,
+    components: usize,
+    values: &[T],
+    to_le: impl Fn(T, &mut Vec<u8>),
+) -> io::Result<()> {
+    let mut bytes = Vec::with_capacity(8 + std::mem::size_of_val(values));
+    bytes.extend_from_slice(&[0; 8]);
+    for &v in values {
+        to_le(v, &mut bytes);
+    }
+    let len = (bytes.len() - 8) as u64;
+    bytes[..8].copy_from_slice(&len.to_le_bytes());
+    write!(w, "        <DataArray type=\"{vtk_type}\"")?;
+    if let Some(name) = name {
+        write!(w, " Name=\"{}\"", xml_escape(name))?;
+    }
+    writeln!(
+        w,
+        " NumberOfComponents=\"{components}\" format=\"binary\">{}</DataArray>",
+        base64(&bytes)
+    )
+}
+
+fn f64_array(w: &mut impl Write, name: Option<&str>, comps: usize, v: &[f64]) -> io::Result<()> {
+    data_array(w, "Float64", name, comps, v, |x, b| {
+        b.extend_from_slice(&x.to_le_bytes())
+    })
+}
+
+/// `<PointData>` or `<CellData>` with one array per field.
+fn field_data(w: &mut impl Write, tag: &str, fields: &[VtkField<'_>]) -> io::Result<()> {
+    if fields.is_empty() {
+        return writeln!(w, "      <{tag}/>");
+    }
+    writeln!(w, "      <{tag}>")?;
+    for f in fields {
+        f64_array(w, Some(f.name), f.components, f.values)?;
+    }
+    writeln!(w, "      </{tag}>")
+}
+
+/// The whole `.vtu` document of a checked piece.
+fn write_xml(w: &mut impl Write, piece: &VtkPiece<'_>, arrays: &Arrays) -> io::Result<()> {
+    writeln!(w, "<?xml version=\"1.0\"?>")?;
+    writeln!(
+        w,
+        "<VTKFile type=\"UnstructuredGrid\" version=\"1.0\" byte_order=\"LittleEndian\" \
+         header_type=\"UInt64\">"
+    )?;
+    writeln!(w, "  <UnstructuredGrid>")?;
+    writeln!(
+        w,
+        "    <Piece NumberOfPoints=\"{}\" NumberOfCells=\"{}\">",
+        piece.points.len(),
+        piece.cells.len()
+    )?;
+    field_data(w, "PointData", piece.point_data)?;
+    field_data(w, "CellData", piece.cell_data)?;
+    writeln!(w, "      <Points>")?;
+    let points: Vec<f64> = piece.points.iter().flatten().copied().collect();
+    f64_array(w, None, 3, &points)?;
+    writeln!(w, "      </Points>")?;
+    writeln!(w, "      <Cells>")?;
+    let u64_le = |x: u64, b: &mut Vec<u8>| b.extend_from_slice(&x.to_le_bytes());
+    data_array(
+        w,
+        "UInt64",
+        Some("connectivity"),
+        1,
+        &arrays.connectivity,
+        u64_le,
+    )?;
+    data_array(w, "UInt64", Some("offsets"), 1, &arrays.offsets, u64_le)?;
+    data_array(w, "UInt8", Some("types"), 1, &arrays.types, |x, b| {
+        b.push(x)
+    })?;
+    writeln!(w, "      </Cells>")?;
+    writeln!(w, "    </Piece>")?;
+    writeln!(w, "  </UnstructuredGrid>")?;
+    writeln!(w, "</VTKFile>")
 }
 
 /// `<path>.tmp`, next to `path` so that the rename stays on one file system.
@@ -233,13 +307,8 @@ fn write_atomic(
 /// lengths, unique non-empty names); problems give `ErrorKind::InvalidInput` and no file.
 /// The file appears atomically (written to `<path>.tmp`, then renamed).
 pub fn write_vtu(path: &Path, piece: &VtkPiece) -> io::Result<()> {
-    let vtk = to_model(piece)?;
-    write_atomic(path, |w| {
-        vtk.write_xml(w).map_err(|e| match e {
-            vtkio::Error::IO(e) => e,
-            other => io::Error::other(format!("vtkio could not write the .vtu: {other}")),
-        })
-    })
+    let arrays = to_arrays(piece)?;
+    write_atomic(path, |w| write_xml(w, piece, &arrays))
 }
 
 /// Escape text for an XML attribute value.
@@ -304,6 +373,22 @@ mod tests {
     }
 
     #[test]
+    fn base64_matches_rfc_4648() {
+        for (raw, encoded) in [
+            ("", ""),
+            ("f", "Zg=="),
+            ("fo", "Zm8="),
+            ("foo", "Zm9v"),
+            ("foob", "Zm9vYg=="),
+            ("fooba", "Zm9vYmE="),
+            ("foobar", "Zm9vYmFy"),
+        ] {
+            assert_eq!(base64(raw.as_bytes()), encoded);
+        }
+        assert_eq!(base64(&[0xff, 0xfe, 0x00]), "//4A");
+    }
+
+    #[test]
     fn tmp_is_sibling() {
         assert_eq!(
             tmp_path(Path::new("out/a.vtu")),
@@ -336,7 +421,7 @@ mod tests {
                 point_data: &point_data,
                 cell_data: &[],
             };
-            let err = to_model(&piece).expect_err("invalid");
+            let err = to_arrays(&piece).expect_err("invalid");
             assert_eq!(err.kind(), io::ErrorKind::InvalidInput);
         }
     }

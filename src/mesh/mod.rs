@@ -1,7 +1,6 @@
 //! Meshes: nodes, cells, boundary extraction and quality checks.
 
 pub mod generators;
-pub mod gmsh;
 
 use std::collections::HashMap;
 
@@ -301,97 +300,6 @@ where
             *x += offset;
         }
     }
-}
-
-/// Reads a Gmsh MSH file (2.2 or 4.1, ASCII or binary) as a D-dimensional mesh: the cells of
-/// the highest dimension form the body (they must be D-dimensional); every physical group
-/// becomes a named node set (the nodes of its elements, any dimension). Nodes used by no body
-/// cell are dropped and the rest renumbered in file order.
-pub fn from_gmsh_file<const D: usize>(path: &std::path::Path) -> Result<Mesh<D>>
-where
-    Dim<D>: SpatialDim<D>,
-{
-    let file_error = |message: String| Error::MeshFile {
-        file: path.to_path_buf(),
-        message,
-    };
-    let g = gmsh::read_gmsh(path).map_err(|e| file_error(e.to_string()))?;
-    from_gmsh(&g).map_err(file_error)
-}
-
-/// Converts a parsed Gmsh mesh (see [`from_gmsh_file`]).
-pub fn from_gmsh<const D: usize>(g: &gmsh::GmshMesh) -> std::result::Result<Mesh<D>, String>
-where
-    Dim<D>: SpatialDim<D>,
-{
-    use gmsh::GmshCellKind as G;
-    let top = g.highest_dimension().ok_or("the file has no element")?;
-    if top != D {
-        return Err(format!(
-            "found {top}D elements as the highest dimension; expected {D}D cells"
-        ));
-    }
-    let mut renumber = vec![usize::MAX; g.nodes.len()];
-    let mut nodes = Vec::new();
-    let mut blocks: Vec<CellBlock> = Vec::new();
-    for (e, el) in g.elements.iter().enumerate() {
-        if el.kind.dimension() != Some(D) {
-            continue;
-        }
-        let kind = match el.kind {
-            G::Tri3 => ElementKind::Tri3,
-            G::Quad4 => ElementKind::Quad4,
-            G::Tet4 => ElementKind::Tet4,
-            G::Hex8 => ElementKind::Hex8,
-            other => {
-                return Err(format!(
-                    "element {e} has Gmsh type {}; expected linear tri3, quad4, tet4 or hex8",
-                    other.gmsh_type()
-                ))
-            }
-        };
-        let block = match blocks.iter_mut().position(|b| b.kind == kind) {
-            Some(i) => &mut blocks[i],
-            None => {
-                blocks.push(CellBlock {
-                    kind,
-                    connectivity: Vec::new(),
-                });
-                blocks.last_mut().expect("just pushed")
-            }
-        };
-        for &n in &el.nodes {
-            if renumber[n] == usize::MAX {
-                renumber[n] = nodes.len();
-                let mut x = SVector::<f64, D>::zeros();
-                for k in 0..D {
-                    x[k] = g.nodes[n][k];
-                }
-                nodes.push(x);
-            }
-            block.connectivity.push(renumber[n]);
-        }
-    }
-    let mut node_sets: HashMap<String, Vec<usize>> = HashMap::new();
-    for (dim, tag, name) in &g.physical_names {
-        let mut set: Vec<usize> = g
-            .elements
-            .iter()
-            .filter(|el| {
-                el.physical_tag == Some(*tag) && el.kind.dimension() == Some(*dim as usize)
-            })
-            .flat_map(|el| el.nodes.iter().map(|&n| renumber[n]))
-            .filter(|&n| n != usize::MAX)
-            .collect();
-        set.sort_unstable();
-        set.dedup();
-        node_sets.insert(name.clone(), set);
-    }
-    Ok(Mesh {
-        nodes,
-        blocks,
-        node_sets,
-    })
 }
 
 #[cfg(test)]

@@ -1,0 +1,543 @@
+//! Validation of a parsed scene into typed values for dimension D: settings, contact, bodies
+//! (their meshes in `mesh_spec`, obstacle shapes in `obstacle_spec`), probes and output.
+
+use std::collections::BTreeMap;
+
+use nalgebra::SVector;
+
+use super::schema::{
+    AngularSpec, BetaSpec, BodySection, ComponentsSpec, ConstraintSection, FrictionSpec,
+    MaterialSpec,
+};
+use super::{LoadedScene, OutputOptions, Probe, Scene};
+use crate::contact::resolution::DEFAULT_REGULARIZATION;
+use crate::contact::{ContactMethod, ContactSettings, FrictionLaw};
+use crate::dim::{Dim, Kinematics, SpatialDim};
+use crate::error::{Error, Result};
+use crate::material::{LinearElastic, Material};
+use crate::mesh::Mesh;
+use crate::simulation::{Body, Constraint, MassKind, Settings};
+use crate::solver::FillOrdering;
+use crate::time::{Beta, SpaceTimeScheme};
+
+impl LoadedScene {
+    /// Validates the whole scene for dimension D, reading mesh files.
+    pub fn build<const D: usize>(&self) -> Result<Scene<D>>
+    where
+        Dim<D>: SpatialDim<D>,
+    {
+        let settings = self.settings::<D>()?;
+        let contact = self.check_contact()?;
+
+        if self.file.bodies.is_empty() {
+            return Err(self.error("bodies", "no [[bodies]]", "at least one body"));
+        }
+        let mut bodies = Vec::new();
+        for (b, spec) in self.file.bodies.iter().enumerate() {
+            bodies.push(self.body::<D>(b, spec, settings.kinematics)?);
+        }
+        let mut obstacles = Vec::new();
+        for (o, spec) in self.file.obstacles.iter().enumerate() {
+            obstacles.push(self.obstacle::<D>(o, spec)?);
+        }
+        let probes = self.probes(&bodies)?;
+        let output = self.output_options()?;
+        Ok(Scene {
+            settings,
+            end_time: self.file.simulation.end_time,
+            bodies,
+            obstacles,
+            probes,
+            output,
+            contact,
+        })
+    }
+
+    /// `[[probes]]`: unique names, the body by name, the nearest node to the point.
+    fn probes<const D: usize>(&self, bodies: &[Body<D>]) -> Result<Vec<Probe>>
+    where
+        Dim<D>: SpatialDim<D>,
+    {
+        let mut probes = Vec::new();
+        for (p, spec) in self.file.probes.iter().enumerate() {
+            let key = format!("probes.{p}");
+            let earlier = self.file.probes[..p].iter().map(|x| x.name.as_str());
+            self.unique_name(&key, earlier, &spec.name, "probe")?;
+            let body = bodies
+                .iter()
+                .position(|b| b.name == spec.body)
+                .ok_or_else(|| {
+                    let names: Vec<&str> = bodies.iter().map(|b| b.name.as_str()).collect();
+                    self.error(
+                        &format!("{key}.body"),
+                        format!("\"{}\"", spec.body),
+                        format!("the name of a body: {names:?}"),
+                    )
+                })?;
+            let point = self.vector::<D>(&format!("{key}.point"), &spec.point)?;
+            let node = bodies[body].mesh.nearest_node(&point);
+            probes.push(Probe {
+                name: spec.name.clone(),
+                body,
+                node,
+            });
+        }
+        Ok(probes)
+    }
+
+    /// `[output]`: the history and VTK intervals.
+    fn output_options(&self) -> Result<OutputOptions> {
+        let out = &self.file.output;
+        if !(out.history_interval >= 0.0 && out.history_interval.is_finite()) {
+            return Err(self.error(
+                "output.history_interval",
+                out.history_interval,
+                "a finite value >= 0 [s]",
+            ));
+        }
+        if !(out.vtk_interval >= 0.0 && out.vtk_interval.is_finite()) {
+            return Err(self.error(
+                "output.vtk_interval",
+                out.vtk_interval,
+                "a finite value >= 0 [s]",
+            ));
+        }
+        Ok(OutputOptions {
+            history_interval: out.history_interval,
+            vtk_interval: out.vtk_interval,
+        })
+    }
+
+    /// `[simulation]`: the time step, the scheme, gravity, kinematics and solver options.
+    fn settings<const D: usize>(&self) -> Result<Settings<D>>
+    where
+        Dim<D>: SpatialDim<D>,
+    {
+        let s = &self.file.simulation;
+        let kinematics = match (D, s.kinematics.as_deref()) {
+            (3, None) | (3, Some("solid")) => Kinematics::Solid,
+            (3, Some(k)) => {
+                return Err(self.error(
+                    "simulation.kinematics",
+                    format!("\"{k}\""),
+                    "no kinematics key in 3D (or \"solid\")",
+                ))
+            }
+            (_, None) | (_, Some("plane_strain")) => Kinematics::PlaneStrain,
+            (_, Some("plane_stress")) => Kinematics::PlaneStress,
+            (_, Some("axisymmetric")) => Kinematics::Axisymmetric,
+            (_, Some(k)) => {
+                return Err(self.error(
+                    "simulation.kinematics",
+                    format!("\"{k}\""),
+                    "\"plane_strain\", \"plane_stress\" or \"axisymmetric\"",
+                ))
+            }
+        };
+        let time_step = self.positive("simulation.time_step", s.time_step, "s")?;
+        if !(s.end_time >= 0.0 && s.end_time.is_finite()) {
+            return Err(self.error("simulation.end_time", s.end_time, "a finite value >= 0 [s]"));
+        }
+        if !(0.0..=1.0).contains(&s.alpha) {
+            return Err(self.error("simulation.alpha", s.alpha, "a number in [0, 1]"));
+        }
+        let beta = match &s.beta {
+            BetaSpec::Name(n) if n == "energy" => Beta::Energy,
+            BetaSpec::Name(n) if n == "trapezoid" => Beta::Trapezoid,
+            BetaSpec::Value(b) if (0.0..=1.0).contains(b) => Beta::Value(*b),
+            BetaSpec::Value(b) => {
+                return Err(self.error(
+                    "simulation.beta",
+                    b,
+                    "\"energy\", \"trapezoid\" or a number in [0, 1]",
+                ))
+            }
+            BetaSpec::Name(n) => {
+                return Err(self.error(
+                    "simulation.beta",
+                    format!("\"{n}\""),
+                    "\"energy\", \"trapezoid\" or a number in [0, 1]",
+                ))
+            }
+        };
+        let scheme = SpaceTimeScheme::new(s.alpha, beta)?;
+        let gravity = match &s.gravity {
+            Some(g) => self.vector::<D>("simulation.gravity", g)?,
+            None => SVector::zeros(),
+        };
+        if s.max_iterations < 1 {
+            return Err(self.error(
+                "simulation.max_iterations",
+                s.max_iterations,
+                "an integer >= 1",
+            ));
+        }
+        if !(s.tolerance > 0.0 && s.tolerance < 1.0) {
+            return Err(self.error("simulation.tolerance", s.tolerance, "a number in (0, 1)"));
+        }
+        let mass = match s.mass.as_deref() {
+            None | Some("consistent") => MassKind::Consistent,
+            Some("lumped") => MassKind::Lumped,
+            Some(m) => {
+                return Err(self.error(
+                    "simulation.mass",
+                    format!("\"{m}\""),
+                    "\"consistent\" or \"lumped\"",
+                ))
+            }
+        };
+        let ordering = match s.ordering.as_deref() {
+            None | Some("nested_dissection") => FillOrdering::NestedDissection,
+            Some("minimum_degree") => FillOrdering::MinimumDegree,
+            Some(o) => {
+                return Err(self.error(
+                    "simulation.ordering",
+                    format!("\"{o}\""),
+                    "\"nested_dissection\" or \"minimum_degree\"",
+                ))
+            }
+        };
+        Ok(Settings {
+            time_step,
+            scheme,
+            gravity,
+            kinematics,
+            max_iterations: s.max_iterations as usize,
+            tolerance: s.tolerance,
+            mass,
+            ordering,
+        })
+    }
+
+    /// `bodies.{b}`: name, mesh, material, initial velocities, constraints, mesh checks.
+    fn body<const D: usize>(
+        &self,
+        b: usize,
+        spec: &BodySection,
+        kinematics: Kinematics,
+    ) -> Result<Body<D>>
+    where
+        Dim<D>: SpatialDim<D>,
+    {
+        let key = format!("bodies.{b}");
+        let earlier = self.file.bodies[..b].iter().map(|x| x.name.as_str());
+        self.unique_name(&key, earlier, &spec.name, "body")?;
+        let (mesh, groups) = self.mesh::<D>(&format!("{key}.mesh"), &spec.mesh, &spec.name)?;
+        let material = self.material(&format!("{key}.material"), &spec.material)?;
+        let mut body = Body::new(spec.name.clone(), mesh, material);
+        if let Some(v) = &spec.initial_velocity {
+            body.initial_velocity = self.vector::<D>(&format!("{key}.initial_velocity"), v)?;
+        }
+        if let Some(w) = &spec.initial_angular_velocity {
+            let k = format!("{key}.initial_angular_velocity");
+            body.initial_angular_velocity = match (w, <Dim<D>>::ANGULAR) {
+                (AngularSpec::Scalar(x), 1) => vec![*x],
+                (AngularSpec::Vector(v), 3) if v.len() == 3 => v.clone(),
+                _ => {
+                    return Err(self.error(
+                        &k,
+                        format!("{w:?}"),
+                        if D == 2 {
+                            "a number [rad/s] in 2D"
+                        } else {
+                            "a vector [wx, wy, wz] [rad/s] in 3D"
+                        },
+                    ))
+                }
+            };
+            if body.initial_angular_velocity.iter().any(|x| !x.is_finite()) {
+                return Err(self.error(&k, format!("{w:?}"), "finite numbers"));
+            }
+        }
+        for (c, cs) in spec.constraints.iter().enumerate() {
+            let ck = format!("{key}.constraints.{c}");
+            body.constraints
+                .push(self.constraint::<D>(&ck, cs, &body.mesh, &groups, &spec.name)?);
+        }
+        if kinematics == Kinematics::Axisymmetric {
+            if let Some(n) = body.mesh.nodes.iter().position(|x| x[0] < 0.0) {
+                return Err(self.error(
+                    &format!("{key}.mesh"),
+                    format!("node {n} at r = x = {}", body.mesh.nodes[n][0]),
+                    "r = x >= 0 for every node in axisymmetric kinematics",
+                ));
+            }
+        }
+        if let Err(e) = body.mesh.check_quality(&spec.name) {
+            return Err(match e {
+                Error::InvertedElement {
+                    cell,
+                    kind,
+                    jacobian,
+                    ..
+                } => self.error(
+                    &format!("{key}.mesh"),
+                    format!("cell {cell} {kind} (Jacobian determinant {jacobian:.3e})"),
+                    "cells with a positive Jacobian everywhere (check node ordering and geometry)",
+                ),
+                other => other,
+            });
+        }
+        Ok(body)
+    }
+
+    fn check_contact(&self) -> Result<ContactSettings> {
+        let c = &self.file.contact;
+        const METHODS: [&str; 4] = [
+            "soft_way",
+            "implicit_projection",
+            "augmented_lagrangian",
+            "explicit_projection",
+        ];
+        if !METHODS.contains(&c.method.as_str()) {
+            return Err(self.error(
+                "contact.method",
+                format!("\"{}\"", c.method),
+                format!("one of {METHODS:?}"),
+            ));
+        }
+        if let Some(p) = c.penalty {
+            self.positive("contact.penalty", p, "Pa/m")?;
+        } else if matches!(c.method.as_str(), "soft_way" | "augmented_lagrangian") {
+            return Err(self.error(
+                "contact.penalty",
+                "nothing",
+                format!("a penalty zeta > 0 [Pa/m] for method \"{}\"", c.method),
+            ));
+        }
+        self.positive("contact.gap_tolerance", c.gap_tolerance, "m")?;
+        let method = match c.method.as_str() {
+            "soft_way" => ContactMethod::SoftWay,
+            "augmented_lagrangian" => ContactMethod::AugmentedLagrangian,
+            "explicit_projection" => ContactMethod::ExplicitProjection,
+            _ => ContactMethod::ImplicitProjection,
+        };
+        let friction = self.friction("contact.friction", &c.friction)?;
+        let any_friction = friction != FrictionLaw::Frictionless
+            || self.file.obstacles.iter().any(|o| {
+                o.friction
+                    .as_ref()
+                    .is_some_and(|f| *f != FrictionSpec::Frictionless)
+            });
+        if method == ContactMethod::ExplicitProjection && any_friction {
+            return Err(self.error(
+                "contact.method",
+                "\"explicit_projection\" with a friction law",
+                "a method with a normal force inside the step to carry friction (soft_way, \
+                 implicit_projection or augmented_lagrangian), or law = \"frictionless\"",
+            ));
+        }
+        Ok(ContactSettings {
+            method,
+            penalty: c.penalty.unwrap_or(0.0),
+            self_contact: c.self_contact,
+            gap_tolerance: c.gap_tolerance,
+            friction,
+            ..ContactSettings::default()
+        })
+    }
+
+    pub(super) fn friction(&self, key: &str, f: &FrictionSpec) -> Result<FrictionLaw> {
+        let non_negative = |k: &str, v: f64| {
+            if v >= 0.0 && v.is_finite() {
+                Ok(())
+            } else {
+                Err(self.error(&format!("{key}.{k}"), v, "a finite value >= 0"))
+            }
+        };
+        let regularization = |r: &Option<f64>| -> Result<f64> {
+            match r {
+                Some(r) => self.positive(&format!("{key}.regularization"), *r, "m/s"),
+                None => Ok(DEFAULT_REGULARIZATION),
+            }
+        };
+        Ok(match f {
+            FrictionSpec::Frictionless => FrictionLaw::Frictionless,
+            FrictionSpec::Coulomb {
+                coefficient,
+                regularization: r,
+            } => {
+                non_negative("coefficient", *coefficient)?;
+                FrictionLaw::Coulomb {
+                    coefficient: *coefficient,
+                    regularization: regularization(r)?,
+                }
+            }
+            FrictionSpec::Tresca { limit } => {
+                non_negative("limit", *limit)?;
+                FrictionLaw::Tresca {
+                    limit: *limit,
+                    regularization: DEFAULT_REGULARIZATION,
+                }
+            }
+            FrictionSpec::Viscoplastic {
+                coefficient,
+                exponent,
+                regularization: r,
+            } => {
+                non_negative("coefficient", *coefficient)?;
+                non_negative("exponent", *exponent)?;
+                FrictionLaw::Viscoplastic {
+                    coefficient: *coefficient,
+                    exponent: *exponent,
+                    regularization: regularization(r)?,
+                }
+            }
+        })
+    }
+
+    fn material(&self, key: &str, m: &MaterialSpec) -> Result<Material> {
+        match m {
+            MaterialSpec::LinearElastic { youngs_modulus, poissons_ratio, density } => {
+                self.positive(&format!("{key}.youngs_modulus"), *youngs_modulus, "Pa")?;
+                if !(*poissons_ratio > -1.0 && *poissons_ratio < 0.5) {
+                    return Err(self.error(&format!("{key}.poissons_ratio"), poissons_ratio, "a value in (-1, 0.5)"));
+                }
+                if !(*density >= 0.0 && density.is_finite()) {
+                    return Err(self.error(&format!("{key}.density"), density, "a finite value >= 0 [kg/m^3]"));
+                }
+                Ok(Material::LinearElastic(LinearElastic::new(*youngs_modulus, *poissons_ratio, *density)?))
+            }
+            MaterialSpec::Hypoelastic { .. } | MaterialSpec::NortonHoff { .. } => Err(Error::NotAvailable {
+                feature: format!("{}: the {} material", self.path.display(), if matches!(m, MaterialSpec::Hypoelastic { .. }) { "hypoelastic" } else { "norton_hoff" }),
+                detail: format!("`{key}.model` is accepted by the parser, but only \"linear_elastic\" runs in this version"),
+            }),
+        }
+    }
+
+    fn constraint<const D: usize>(
+        &self,
+        key: &str,
+        c: &ConstraintSection,
+        mesh: &Mesh<D>,
+        groups: &BTreeMap<String, Vec<usize>>,
+        body: &str,
+    ) -> Result<Constraint>
+    where
+        Dim<D>: SpatialDim<D>,
+    {
+        let nodes = match (&c.region.group, &c.region.min, &c.region.max) {
+            (Some(g), None, None) => groups.get(g).cloned().ok_or_else(|| {
+                let names: Vec<&String> = groups.keys().collect();
+                self.error(
+                    &format!("{key}.region.group"),
+                    format!("\"{g}\""),
+                    format!("a physical group of the mesh file: {names:?}"),
+                )
+            })?,
+            (None, Some(min), Some(max)) => {
+                let min = self.vector::<D>(&format!("{key}.region.min"), min)?;
+                let max = self.vector::<D>(&format!("{key}.region.max"), max)?;
+                mesh.nodes_in_box(&min, &max)
+            }
+            _ => {
+                return Err(self.error(
+                    &format!("{key}.region"),
+                    "an incomplete region",
+                    "{ min = [..], max = [..] } or { group = \"name\" }",
+                ))
+            }
+        };
+        if nodes.is_empty() {
+            let (lo, hi) = mesh.bounding_box();
+            return Err(self.error(
+                &format!("{key}.region"),
+                format!("a region that selects no node of body `{body}`"),
+                format!(
+                    "a region that contains nodes (the mesh spans {:?} to {:?})",
+                    lo.as_slice(),
+                    hi.as_slice()
+                ),
+            ));
+        }
+        let velocity = match &c.velocity {
+            ComponentsSpec::Array(v) => self
+                .vector::<D>(&format!("{key}.velocity"), v)?
+                .iter()
+                .map(|x| Some(*x))
+                .collect(),
+            ComponentsSpec::Named(n) => {
+                if D == 2 && n.z.is_some() {
+                    return Err(self.error(
+                        &format!("{key}.velocity.z"),
+                        "a z component in 2D",
+                        "x and y only",
+                    ));
+                }
+                let v: Vec<Option<f64>> = [n.x, n.y, n.z][..D].to_vec();
+                if v.iter().all(Option::is_none) {
+                    return Err(self.error(
+                        &format!("{key}.velocity"),
+                        "no component",
+                        "at least one of x, y, z",
+                    ));
+                }
+                if v.iter().flatten().any(|x| !x.is_finite()) {
+                    return Err(self.error(
+                        &format!("{key}.velocity"),
+                        "a non-finite component",
+                        "finite numbers [m/s]",
+                    ));
+                }
+                v
+            }
+        };
+        Ok(Constraint { nodes, velocity })
+    }
+
+    pub(super) fn vector<const D: usize>(&self, key: &str, v: &[f64]) -> Result<SVector<f64, D>> {
+        if v.len() != D {
+            return Err(self.error(
+                key,
+                format!("{} components", v.len()),
+                format!("{D} components (dimension = {D})"),
+            ));
+        }
+        if v.iter().any(|x| !x.is_finite()) {
+            return Err(self.error(key, format!("{v:?}"), "finite numbers"));
+        }
+        Ok(SVector::from_column_slice(v))
+    }
+
+    /// `{key}.name` must differ from the `earlier` names of its list and be a valid name.
+    pub(super) fn unique_name<'a>(
+        &self,
+        key: &str,
+        mut earlier: impl Iterator<Item = &'a str>,
+        name: &str,
+        what: &str,
+    ) -> Result<()> {
+        let key = format!("{key}.name");
+        if earlier.any(|e| e == name) {
+            return Err(self.error(
+                &key,
+                format!("\"{name}\" again"),
+                format!("a unique {what} name"),
+            ));
+        }
+        self.name(&key, name)
+    }
+
+    /// Names become history.csv columns (`probe.<name>.ux`), VTK file names
+    /// (`vtk/<body>_<step>.vtu`) and `--set obstacles.NAME.` paths: no commas, quotes, dots,
+    /// slashes or spaces.
+    pub(super) fn name(&self, key: &str, name: &str) -> Result<()> {
+        let ok = |c: char| c.is_alphanumeric() || c == '_' || c == '-';
+        if name.is_empty() || !name.chars().all(ok) {
+            return Err(self.error(
+                key,
+                format!("{name:?}"),
+                "a non-empty name of letters, digits, '_' and '-'",
+            ));
+        }
+        Ok(())
+    }
+
+    pub(super) fn positive(&self, key: &str, v: f64, unit: &str) -> Result<f64> {
+        if v > 0.0 && v.is_finite() {
+            Ok(v)
+        } else {
+            Err(self.error(key, v, format!("a finite value > 0 [{unit}]")))
+        }
+    }
+}

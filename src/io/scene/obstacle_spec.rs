@@ -1,0 +1,138 @@
+//! `[[obstacles]]`: names, shapes (halfspace, box, ball, polyline / trimesh), velocity and
+//! friction, validated for dimension D.
+
+use super::schema::{ObstacleSection, ShapeSpec};
+use super::LoadedScene;
+use crate::contact::{Obstacle, ObstacleShape};
+use crate::dim::{Dim, SpatialDim};
+use crate::error::{Error, Result};
+
+impl LoadedScene {
+    /// `obstacles.{o}`: name, shape, velocity, friction.
+    pub(super) fn obstacle<const D: usize>(
+        &self,
+        o: usize,
+        spec: &ObstacleSection,
+    ) -> Result<Obstacle<D>>
+    where
+        Dim<D>: SpatialDim<D>,
+    {
+        let key = format!("obstacles.{o}");
+        let earlier = self.file.obstacles[..o].iter().map(|x| x.name.as_str());
+        self.unique_name(&key, earlier, &spec.name, "obstacle")?;
+        let shape = self.shape::<D>(&format!("{key}.shape"), &spec.shape)?;
+        let mut obstacle = Obstacle::new(spec.name.clone(), shape);
+        if let Some(v) = &spec.velocity {
+            obstacle.velocity = self.vector::<D>(&format!("{key}.velocity"), v)?;
+        }
+        if let Some(f) = &spec.friction {
+            obstacle.friction = Some(self.friction(&format!("{key}.friction"), f)?);
+        }
+        Ok(obstacle)
+    }
+
+    fn shape<const D: usize>(&self, key: &str, s: &ShapeSpec) -> Result<ObstacleShape<D>>
+    where
+        Dim<D>: SpatialDim<D>,
+    {
+        Ok(match s {
+            ShapeSpec::Halfspace { point, normal } => {
+                let n = self.vector::<D>(&format!("{key}.normal"), normal)?;
+                if n.norm() == 0.0 {
+                    return Err(self.error(
+                        &format!("{key}.normal"),
+                        "a zero vector",
+                        "a non-zero normal",
+                    ));
+                }
+                ObstacleShape::Halfspace {
+                    point: self.vector::<D>(&format!("{key}.point"), point)?,
+                    normal: n.normalize(),
+                }
+            }
+            ShapeSpec::Box {
+                center,
+                half_extents,
+            } => {
+                let h = self.vector::<D>(&format!("{key}.half_extents"), half_extents)?;
+                if h.iter().any(|x| *x <= 0.0) {
+                    return Err(self.error(
+                        &format!("{key}.half_extents"),
+                        format!("{:?}", h.as_slice()),
+                        "positive half extents [m]",
+                    ));
+                }
+                ObstacleShape::Box {
+                    center: self.vector::<D>(&format!("{key}.center"), center)?,
+                    half_extents: h,
+                }
+            }
+            ShapeSpec::Ball { center, radius } => ObstacleShape::Ball {
+                center: self.vector::<D>(&format!("{key}.center"), center)?,
+                radius: self.positive(&format!("{key}.radius"), *radius, "m")?,
+            },
+            ShapeSpec::Polyline {
+                vertices,
+                indices,
+                file,
+            }
+            | ShapeSpec::Trimesh {
+                vertices,
+                indices,
+                file,
+            } => {
+                let is_polyline = matches!(s, ShapeSpec::Polyline { .. });
+                if is_polyline != (D == 2) {
+                    return Err(self.error(
+                        &format!("{key}.type"),
+                        if is_polyline {
+                            "\"polyline\" in 3D"
+                        } else {
+                            "\"trimesh\" in 2D"
+                        },
+                        if D == 2 {
+                            "\"polyline\" in 2D"
+                        } else {
+                            "\"trimesh\" in 3D"
+                        },
+                    ));
+                }
+                if file.is_some() {
+                    return Err(Error::NotAvailable {
+                        feature: format!("{}: `{key}.file`", self.path.display()),
+                        detail: "give the obstacle's `vertices` and `indices` inline".into(),
+                    });
+                }
+                let verts = vertices.as_ref().ok_or_else(|| {
+                    self.error(&format!("{key}.vertices"), "nothing", "a list of vertices")
+                })?;
+                let idx = indices.as_ref().ok_or_else(|| {
+                    self.error(
+                        &format!("{key}.indices"),
+                        "nothing",
+                        format!("a list of facets of {D} vertex indices"),
+                    )
+                })?;
+                let mut vs = Vec::new();
+                for (i, v) in verts.iter().enumerate() {
+                    vs.push(self.vector::<D>(&format!("{key}.vertices.{i}"), v)?);
+                }
+                let mut facets = Vec::new();
+                for (i, f) in idx.iter().enumerate() {
+                    if f.len() != D || f.iter().any(|&k| k < 0 || k as usize >= vs.len()) {
+                        return Err(self.error(
+                            &format!("{key}.indices.{i}"),
+                            format!("{f:?}"),
+                            format!("{D} indices below {}", vs.len()),
+                        ));
+                    }
+                    facets.push(f.iter().map(|&k| k as usize).collect());
+                }
+                ObstacleShape::Facets {
+                    vertices: vs,
+                    indices: facets,
+                }
+            }
+        })
+    }
+}
