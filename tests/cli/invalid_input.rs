@@ -1,0 +1,393 @@
+//! Bad scenes: exit status 2, one clear message, nothing written.
+
+use std::fs;
+
+use super::support::*;
+
+#[test]
+fn malformed_toml() {
+    let file = bad("malformed_toml");
+    let dir = tempdir();
+    let out = dir.path().join("out");
+    let err = assert_invalid(
+        dir.path(),
+        &[
+            "run",
+            file.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+        ],
+    );
+    assert!(err.contains(file.to_str().unwrap()), "{err}");
+    let line = line_of(&file, "end_time = 0.01 seconds");
+    assert!(err.contains(&format!("line {line}")), "{err}");
+    assert!(
+        err.contains("seconds"),
+        "the message shows what was found:\n{err}"
+    );
+    assert!(err.contains("expected"), "{err}");
+}
+
+#[test]
+fn unknown_keys() {
+    assert_bad_scene(
+        "unknown_key_top",
+        Expect {
+            key: "simulation.steps",
+            marker: Some("steps = 100"),
+            found: "unknown field `steps`",
+            expected: "`time_step`",
+        },
+    );
+    assert_bad_scene(
+        "unknown_table",
+        Expect {
+            key: "solver",
+            marker: Some("[solver]"),
+            found: "unknown field `solver`",
+            expected: "`simulation`",
+        },
+    );
+    assert_bad_scene(
+        "unknown_key_nested",
+        Expect {
+            key: "bodies.0.material.colour",
+            marker: Some("colour"),
+            found: "unknown field `colour`",
+            expected: "`youngs_modulus`",
+        },
+    );
+    assert_bad_scene(
+        "unknown_key_region",
+        Expect {
+            key: "bodies.0.constraints.0.region.radius",
+            marker: Some("radius"),
+            found: "unknown field `radius`",
+            expected: "`min`",
+        },
+    );
+}
+
+#[test]
+fn wrong_types_and_missing_keys() {
+    assert_bad_scene(
+        "wrong_type",
+        Expect {
+            key: "bodies.0.material.youngs_modulus",
+            marker: Some("youngs_modulus = \"stiff\""),
+            found: "\"stiff\"",
+            expected: "a number",
+        },
+    );
+    assert_bad_scene(
+        "wrong_type_top",
+        Expect {
+            key: "simulation.end_time",
+            marker: Some("end_time = \"soon\""),
+            found: "\"soon\"",
+            expected: "a number",
+        },
+    );
+    assert_bad_scene(
+        "beta_wrong_type",
+        Expect {
+            key: "simulation.beta",
+            marker: Some("beta = true"),
+            found: "true",
+            expected: "\"energy\", \"trapezoid\" or a number in [0, 1]",
+        },
+    );
+    // The key is not in the file: the message points at the table that lacks it.
+    assert_bad_scene(
+        "missing_key",
+        Expect {
+            key: "simulation.end_time",
+            marker: Some("[simulation]"),
+            found: "nothing",
+            expected: "`end_time`",
+        },
+    );
+}
+
+#[test]
+fn out_of_range_numbers() {
+    let cases = [
+        (
+            "youngs_modulus_zero",
+            "bodies.0.material.youngs_modulus",
+            "youngs_modulus = 0.0",
+            "0",
+            "> 0",
+        ),
+        (
+            "youngs_modulus_negative",
+            "bodies.0.material.youngs_modulus",
+            "youngs_modulus = -2.0e11",
+            "-200000000000",
+            "> 0",
+        ),
+        (
+            "poissons_ratio_half",
+            "bodies.0.material.poissons_ratio",
+            "poissons_ratio = 0.5",
+            "0.5",
+            "(-1, 0.5)",
+        ),
+        (
+            "poissons_ratio_minus_one",
+            "bodies.0.material.poissons_ratio",
+            "poissons_ratio = -1.0",
+            "-1",
+            "(-1, 0.5)",
+        ),
+        (
+            "alpha_above_one",
+            "simulation.alpha",
+            "alpha = 1.2",
+            "1.2",
+            "[0, 1]",
+        ),
+        (
+            "alpha_negative",
+            "simulation.alpha",
+            "alpha = -0.1",
+            "-0.1",
+            "[0, 1]",
+        ),
+        (
+            "beta_above_one",
+            "simulation.beta",
+            "beta = 1.5",
+            "1.5",
+            "a number in [0, 1]",
+        ),
+        (
+            "beta_unknown",
+            "simulation.beta",
+            "beta = \"midpoint\"",
+            "\"midpoint\"",
+            "\"energy\"",
+        ),
+        (
+            "time_step_zero",
+            "simulation.time_step",
+            "time_step = 0.0",
+            "0",
+            "> 0 [s]",
+        ),
+        (
+            "time_step_negative",
+            "simulation.time_step",
+            "time_step = -1.0e-3",
+            "-0.001",
+            "> 0 [s]",
+        ),
+        (
+            "end_time_negative",
+            "simulation.end_time",
+            "end_time = -0.01",
+            "-0.01",
+            ">= 0 [s]",
+        ),
+        (
+            "dimension_four",
+            "simulation.dimension",
+            "dimension = 4",
+            "4",
+            "2 or 3",
+        ),
+        (
+            "ordering_unknown",
+            "simulation.ordering",
+            "ordering = ",
+            "\"metis\"",
+            "\"nested_dissection\"",
+        ),
+        (
+            "kinematics_unknown",
+            "simulation.kinematics",
+            "kinematics = ",
+            "\"plane_strian\"",
+            "\"plane_strain\"",
+        ),
+        (
+            "contact_method_unknown",
+            "contact.method",
+            "method = \"magic\"",
+            "\"magic\"",
+            "soft_way",
+        ),
+        (
+            "contact_penalty_negative",
+            "contact.penalty",
+            "penalty = -1.0e9",
+            "-1000000000",
+            "> 0 [Pa/m]",
+        ),
+    ];
+    for (name, key, marker, found, expected) in cases {
+        assert_bad_scene(
+            name,
+            Expect {
+                key,
+                marker: Some(marker),
+                found,
+                expected,
+            },
+        );
+    }
+    // A penalty has no default: soft_way without one points at [contact].
+    assert_bad_scene(
+        "soft_way_without_penalty",
+        Expect {
+            key: "contact.penalty",
+            marker: Some("[contact]"),
+            found: "nothing",
+            expected: "penalty zeta > 0 [Pa/m] for method \"soft_way\"",
+        },
+    );
+}
+
+#[test]
+fn bad_meshes() {
+    let mesh_line = Some("mesh = ");
+    assert_bad_scene(
+        "element_wrong_dimension",
+        Expect {
+            key: "bodies.0.mesh.element",
+            marker: mesh_line,
+            found: "\"hex8\"",
+            expected: "\"tri3\" or \"quad4\" in 2D",
+        },
+    );
+    assert_bad_scene(
+        "generator_unknown",
+        Expect {
+            key: "bodies.0.mesh.generator",
+            marker: mesh_line,
+            found: "\"disc\"",
+            expected: "\"rectangle\"",
+        },
+    );
+    assert_bad_scene(
+        "cells_overflow",
+        Expect {
+            key: "bodies.0.mesh.cells",
+            marker: mesh_line,
+            found: "[100000000000, 100000000000]",
+            expected: "at most",
+        },
+    );
+    assert_bad_scene(
+        "mesh_missing",
+        Expect {
+            key: "bodies.0.mesh.file",
+            marker: mesh_line,
+            found: "no_such_mesh.msh",
+            expected: "a readable Gmsh MSH 2.2 or 4.1 file",
+        },
+    );
+    // The truncated copy of square_tri3_v22_ascii.msh ends inside node 54, on its line 64.
+    assert_bad_scene(
+        "mesh_truncated",
+        Expect {
+            key: "bodies.0.mesh.file",
+            marker: mesh_line,
+            found: "truncated.msh (line 64: ",
+            expected: "Gmsh",
+        },
+    );
+    assert_bad_scene(
+        "mesh_wrong_dimension",
+        Expect {
+            key: "bodies.0.mesh.file",
+            marker: mesh_line,
+            found: "box_tet4_v41_ascii.msh (found 3D elements as the highest dimension; \
+                    expected 2D cells)",
+            expected: "a readable Gmsh MSH 2.2 or 4.1 file",
+        },
+    );
+    assert_bad_scene(
+        "mesh_file_with_cells",
+        Expect {
+            key: "bodies.0.mesh.cells",
+            marker: mesh_line,
+            found: "`cells` with a mesh file",
+            expected: "only `file`",
+        },
+    );
+    // inverted.msh: two triangles of a square, the second one numbered clockwise.
+    assert_bad_scene(
+        "mesh_inverted",
+        Expect {
+            key: "bodies.0.mesh",
+            marker: mesh_line,
+            found: "cell 1 inverted",
+            expected: "positive Jacobian",
+        },
+    );
+}
+
+#[test]
+fn selections_and_names() {
+    assert_bad_scene(
+        "region_empty",
+        Expect {
+            key: "bodies.0.constraints.0.region",
+            marker: Some("region = "),
+            found: "selects no node of body `beam`",
+            expected: "contains nodes",
+        },
+    );
+    assert_bad_scene(
+        "region_group_unknown",
+        Expect {
+            key: "bodies.0.constraints.0.region.group",
+            marker: Some("region = "),
+            found: "\"top\"",
+            expected: "[\"bottom\", \"solid\"]",
+        },
+    );
+    assert_bad_scene(
+        "probe_unknown_body",
+        Expect {
+            key: "probes.0.body",
+            marker: Some("body = \"bean\""),
+            found: "\"bean\"",
+            expected: "[\"beam\"]",
+        },
+    );
+    assert_bad_scene(
+        "probe_point_length",
+        Expect {
+            key: "probes.0.point",
+            marker: Some("point = "),
+            found: "3 components",
+            expected: "2 components",
+        },
+    );
+    assert_bad_scene(
+        "body_name_slash",
+        Expect {
+            key: "bodies.0.name",
+            marker: Some("name = \"left/beam\""),
+            found: "\"left/beam\"",
+            expected: "letters, digits",
+        },
+    );
+}
+
+/// Every bad fixture is refused, so none can slip into the suite unchecked.
+#[test]
+fn every_bad_fixture_is_refused() {
+    let dir = tempdir();
+    let mut n = 0;
+    for e in fs::read_dir(repo().join("fixtures/scenes/bad")).unwrap() {
+        let path = e.unwrap().path();
+        if path.extension().is_some_and(|x| x == "toml") {
+            assert_invalid(dir.path(), &["check", path.to_str().unwrap()]);
+            n += 1;
+        }
+    }
+    assert!(n >= 30, "{n} bad scenes");
+}

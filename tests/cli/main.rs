@@ -1,0 +1,12 @@
+//! The `softway` command line against its contract (`scene-format.md`): exit statuses, error
+//! messages, the output folder and the columns of its files. Drives the real binary.
+//!
+//! Bad scenes live in `fixtures/scenes/bad/` (one defect each); valid scenes are written into
+//! temporary folders. Every case is a tiny mesh and a handful of steps.
+//!
+//! `support.rs`: running the binary and checking messages; `invalid_input.rs`: bad scenes
+//! (exit status 2); `valid_runs.rs`: runs, their outputs, `--set`, instability (exit status 3).
+
+mod invalid_input;
+mod support;
+mod valid_runs;
