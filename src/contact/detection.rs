@@ -25,6 +25,7 @@ use std::collections::HashMap;
 
 use nalgebra::SVector;
 
+use crate::contact::gap::{analytic_obstacle_gap, point_gap};
 use crate::contact::obstacle::{Obstacle, ObstacleShape};
 use crate::contact::{ContactKey, MasterId};
 use crate::dim::{Dim, SpatialDim};
@@ -314,7 +315,7 @@ where
             continue;
         };
         let d = (p - proj.point).norm();
-        let gap = (p - proj.point).dot(&normal);
+        let gap = point_gap(p, &proj.point, &normal);
         let c = Choice {
             facet: f,
             point: proj.point,
@@ -775,78 +776,11 @@ where
         };
     let t = o.translation;
     match &o.shape {
-        ObstacleShape::Halfspace { point, normal } => {
-            let norm = normal.norm();
-            if !positive(norm) {
-                return None;
-            }
-            let n = normal / norm;
-            let g = (p - point - t).dot(&n);
-            Some((pair(g, n, p - n * g, Feature::Face), 0))
-        }
-        ObstacleShape::Ball { center, radius } => {
-            let c = center + t;
-            let r = p - c;
-            let d = r.norm();
-            // At the centre every direction is a normal: take the last axis (up) for
-            // determinism.
-            let n = if d > 0.0 {
-                r / d
-            } else {
-                let mut up = SVector::<f64, D>::zeros();
-                up[D - 1] = 1.0;
-                up
-            };
-            Some((pair(d - radius, n, c + n * *radius, Feature::Face), 0))
-        }
-        ObstacleShape::Box {
-            center,
-            half_extents,
-        } => {
-            let c = center + t;
-            let y = p - c;
-            let h = half_extents.abs();
-            let q = SVector::<f64, D>::from_fn(|k, _| y[k].clamp(-h[k], h[k]));
-            let outside = y - q;
-            let d = outside.norm();
-            if d > 0.0 {
-                let clamped: Vec<usize> = (0..D).filter(|&k| y[k].abs() > h[k]).collect();
-                let bits = (0..D).filter(|&k| y[k] > 0.0).fold(0, |b, k| b | (1 << k));
-                let feature = match clamped.len() {
-                    1 => Feature::Face,
-                    l if l == D => Feature::Vertex(bits),
-                    _ => Feature::Edge((0..D).find(|k| !clamped.contains(k)).unwrap_or(0)),
-                };
-                return Some((pair(d, outside / d, c + q, feature), 0));
-            }
-            // Inside: the nearest face, face id 2 k + (side > 0); the previous face is kept
-            // within the hysteresis.
-            let depth = |face: usize| {
-                h[face / 2]
-                    - if face % 2 == 1 {
-                        y[face / 2]
-                    } else {
-                        -y[face / 2]
-                    }
-            };
-            let mut best = 0;
-            for face in 1..2 * D {
-                if depth(face) < depth(best) {
-                    best = face;
-                }
-            }
-            if let Some(pf) = previous.filter(|&f| f < 2 * D) {
-                if depth(pf) <= depth(best) + hysteresis {
-                    best = pf;
-                }
-            }
-            let k = best / 2;
-            let s = if best % 2 == 1 { 1.0 } else { -1.0 };
-            let mut n = SVector::<f64, D>::zeros();
-            n[k] = s;
-            let mut qp = *p;
-            qp[k] = c[k] + s * h[k];
-            Some((pair(-depth(best), n, qp, Feature::Face), best))
+        ObstacleShape::Halfspace { .. }
+        | ObstacleShape::Ball { .. }
+        | ObstacleShape::Box { .. } => {
+            let g = analytic_obstacle_gap(&o.shape, &t, p, previous, hysteresis)?;
+            Some((pair(g.gap, g.normal, g.point, g.feature), g.choice))
         }
         ObstacleShape::Facets { .. } => {
             let of = facets?;

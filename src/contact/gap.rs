@@ -142,6 +142,132 @@ pub fn plane_weights<const D: usize>(
     w
 }
 
+/// The signed gap of a point `x` to a master point `q` of outward normal `n`:
+/// `(x - q) . n`, negative in penetration.
+pub fn point_gap<const D: usize>(
+    x: &SVector<f64, D>,
+    q: &SVector<f64, D>,
+    n: &SVector<f64, D>,
+) -> f64 {
+    (x - q).dot(n)
+}
+
+/// A point's gap to an analytic obstacle.
+#[derive(Debug, Clone, Copy)]
+pub struct ObstacleGap<const D: usize> {
+    /// Signed gap [m]; negative is penetration.
+    pub gap: f64,
+    /// The obstacle's outward unit normal at the closest point.
+    pub normal: SVector<f64, D>,
+    /// The closest point on the obstacle's surface [m].
+    pub point: SVector<f64, D>,
+    /// The feature holding it.
+    pub feature: Feature,
+    /// The face to remember (inside a box: the face pushed out through, kept within the
+    /// hysteresis), else 0.
+    pub choice: usize,
+}
+
+/// The gap of point `p` to an analytic obstacle (half-space, ball, box) at `translation`;
+/// `previous` and `hysteresis` [m] keep a box's exit face stable near its diagonals. `None`
+/// for a degenerate shape or a facet obstacle (searched by the detector).
+pub fn analytic_obstacle_gap<const D: usize>(
+    shape: &ObstacleShape<D>,
+    translation: &SVector<f64, D>,
+    p: &SVector<f64, D>,
+    previous: Option<usize>,
+    hysteresis: f64,
+) -> Option<ObstacleGap<D>> {
+    let found = |gap: f64,
+                 normal: SVector<f64, D>,
+                 point: SVector<f64, D>,
+                 feature: Feature,
+                 choice: usize| ObstacleGap {
+        gap,
+        normal,
+        point,
+        feature,
+        choice,
+    };
+    let t = *translation;
+    match shape {
+        ObstacleShape::Halfspace { point, normal } => {
+            let norm = normal.norm();
+            if !(norm > 0.0 && norm.is_finite()) {
+                return None;
+            }
+            let n = normal / norm;
+            let g = point_gap(p, &(point + t), &n);
+            Some(found(g, n, p - n * g, Feature::Face, 0))
+        }
+        ObstacleShape::Ball { center, radius } => {
+            let c = center + t;
+            let r = p - c;
+            let d = r.norm();
+            // At the centre every direction is a normal: take the last axis (up) for
+            // determinism.
+            let n = if d > 0.0 {
+                r / d
+            } else {
+                let mut up = SVector::<f64, D>::zeros();
+                up[D - 1] = 1.0;
+                up
+            };
+            Some(found(d - radius, n, c + n * *radius, Feature::Face, 0))
+        }
+        ObstacleShape::Box {
+            center,
+            half_extents,
+        } => {
+            let c = center + t;
+            let y = p - c;
+            let h = half_extents.abs();
+            let q = SVector::<f64, D>::from_fn(|k, _| y[k].clamp(-h[k], h[k]));
+            let outside = y - q;
+            let d = outside.norm();
+            if d > 0.0 {
+                let clamped: Vec<usize> = (0..D).filter(|&k| y[k].abs() > h[k]).collect();
+                let bits = (0..D).filter(|&k| y[k] > 0.0).fold(0, |b, k| b | (1 << k));
+                let feature = match clamped.len() {
+                    1 => Feature::Face,
+                    l if l == D => Feature::Vertex(bits),
+                    _ => Feature::Edge((0..D).find(|k| !clamped.contains(k)).unwrap_or(0)),
+                };
+                return Some(found(d, outside / d, c + q, feature, 0));
+            }
+            // Inside: the nearest face, face id 2 k + (side > 0); the previous face is kept
+            // within the hysteresis.
+            let depth = |face: usize| {
+                h[face / 2]
+                    - if face % 2 == 1 {
+                        y[face / 2]
+                    } else {
+                        -y[face / 2]
+                    }
+            };
+            let mut best = 0;
+            for face in 1..2 * D {
+                if depth(face) < depth(best) {
+                    best = face;
+                }
+            }
+            if let Some(pf) = previous.filter(|&f| f < 2 * D) {
+                if depth(pf) <= depth(best) + hysteresis {
+                    best = pf;
+                }
+            }
+            let k = best / 2;
+            let s = if best % 2 == 1 { 1.0 } else { -1.0 };
+            let mut n = SVector::<f64, D>::zeros();
+            n[k] = s;
+            let mut qp = *p;
+            qp[k] = c[k] + s * h[k];
+            Some(found(-depth(best), n, qp, Feature::Face, best))
+        }
+        ObstacleShape::Facets { .. } => None,
+    }
+}
+
 /// Hessian of the distance to an analytic obstacle at a slave point `x` paired as `pair`
 /// (zero on flat faces).
 pub fn obstacle_gap_hessian<const D: usize>(
