@@ -12,7 +12,7 @@ pub mod resolution;
 use serde::{Deserialize, Serialize};
 
 pub use detection::{ContactPair, ContactSurface, DetectionOptions, Detector, Feature, Master};
-pub use obstacle::{Obstacle, ObstacleShape};
+pub use obstacle::{MotionSegment, Obstacle, ObstacleShape};
 pub use resolution::{ContactMethod, ContactSettings, FrictionLaw};
 
 /// The master side of a contact, as remembered between iterations and steps.

@@ -39,7 +39,20 @@ pub enum ObstacleShape<const D: usize> {
     },
 }
 
-/// A rigid obstacle moving at a constant velocity (changed between steps through the API).
+/// One piece of an obstacle's motion schedule: a constant velocity until `until`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct MotionSegment<const D: usize> {
+    /// The end of this piece [s] (it starts where the previous one ends, the first at 0).
+    pub until: f64,
+    /// Linear velocity [m/s].
+    pub velocity: SVector<f64, D>,
+    /// Angular velocity about the pivot [rad/s]: 1 component in 2D, 3 in 3D (empty: none).
+    #[serde(default)]
+    pub angular_velocity: Vec<f64>,
+}
+
+/// A rigid obstacle moving at a constant velocity (changed between steps through the API) or
+/// along a piecewise-constant schedule.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Obstacle<const D: usize> {
     /// Unique name (history columns use it).
@@ -53,6 +66,13 @@ pub struct Obstacle<const D: usize> {
     /// Friction law against this obstacle; `None` uses the contact settings' law.
     #[serde(default)]
     pub friction: Option<crate::contact::FrictionLaw>,
+    /// A piecewise-constant motion in time order; when not empty it replaces `velocity`, and
+    /// after the last piece the obstacle stops.
+    #[serde(default)]
+    pub motion: Vec<MotionSegment<D>>,
+    /// The point rotations turn about [m] (default: the shape's point or centre).
+    #[serde(default)]
+    pub pivot: Option<SVector<f64, D>>,
 }
 
 impl<const D: usize> Obstacle<D> {
@@ -64,7 +84,33 @@ impl<const D: usize> Obstacle<D> {
             velocity: SVector::zeros(),
             translation: SVector::zeros(),
             friction: None,
+            motion: Vec::new(),
+            pivot: None,
         }
+    }
+
+    /// Sets a piecewise-constant motion schedule (see [`Obstacle::motion`]).
+    pub fn with_motion(mut self, motion: Vec<MotionSegment<D>>) -> Self {
+        self.motion = motion;
+        self
+    }
+
+    /// The displacement of a scheduled obstacle between times `t0` and `t1` [m] (the integral
+    /// of its piecewise-constant velocity); `None` without a schedule.
+    pub fn scheduled_displacement(&self, t0: f64, t1: f64) -> Option<SVector<f64, D>> {
+        if self.motion.is_empty() {
+            return None;
+        }
+        let mut d = SVector::<f64, D>::zeros();
+        let mut start = 0.0;
+        for piece in &self.motion {
+            let (a, b) = (t0.max(start), t1.min(piece.until));
+            if b > a {
+                d += piece.velocity * (b - a);
+            }
+            start = piece.until;
+        }
+        Some(d)
     }
 
     /// Sets the friction law against this obstacle.

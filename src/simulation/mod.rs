@@ -501,6 +501,7 @@ where
             if let Some(f) = &o.friction {
                 f.validate()?;
             }
+            validate_motion(o)?;
         }
         let mut obstacle_translations = Vec::with_capacity(obstacles.len() * D);
         let mut obstacle_velocities = Vec::with_capacity(obstacles.len() * D);
@@ -775,6 +776,13 @@ where
                 self.model.obstacles.len()
             )));
         }
+        if !self.model.obstacles[k].motion.is_empty() {
+            return Err(invalid(
+                &format!("obstacle `{}` velocity", self.model.obstacles[k].name),
+                "a motion schedule",
+                "an obstacle without a motion schedule (its schedule sets its velocity)",
+            ));
+        }
         self.state.obstacle_velocities[k * D..k * D + D].copy_from_slice(v.as_slice());
         Ok(())
     }
@@ -914,6 +922,49 @@ fn end_positions<const D: usize>(
             })
         })
         .collect()
+}
+
+/// A motion schedule: times increasing and finite, velocities finite; rotation is refused
+/// until rotating obstacles are implemented.
+fn validate_motion<const D: usize>(o: &Obstacle<D>) -> Result<()>
+where
+    Dim<D>: SpatialDim<D>,
+{
+    let mut previous = 0.0;
+    for (i, piece) in o.motion.iter().enumerate() {
+        let key = |what: &str| format!("obstacles.{}.motion.{i}.{what}", o.name);
+        if !(piece.until > previous && piece.until.is_finite()) {
+            return Err(invalid(
+                &key("until"),
+                piece.until,
+                &format!("a finite time [s] after the previous piece's end ({previous})"),
+            ));
+        }
+        previous = piece.until;
+        if piece.velocity.iter().any(|v| !v.is_finite()) {
+            return Err(invalid(
+                &key("velocity"),
+                format!("{:?}", piece.velocity.as_slice()),
+                "finite components [m/s]",
+            ));
+        }
+        if !piece.angular_velocity.is_empty() && piece.angular_velocity.len() != <Dim<D>>::ANGULAR {
+            return Err(invalid(
+                &key("angular_velocity"),
+                format!("{} components", piece.angular_velocity.len()),
+                &format!("{} component(s) [rad/s]", <Dim<D>>::ANGULAR),
+            ));
+        }
+        if piece.angular_velocity.iter().any(|w| *w != 0.0) {
+            return Err(Error::NotAvailable {
+                feature: format!("{} (rotating obstacles)", key("angular_velocity")),
+                detail: "obstacles translate only in this version; give angular_velocity = 0 \
+                         or leave it out"
+                    .into(),
+            });
+        }
+    }
+    Ok(())
 }
 
 fn validate_settings<const D: usize>(s: &Settings<D>) -> Result<()>

@@ -102,6 +102,18 @@ where
             .collect()
     }
 
+    /// Sets the velocity of every scheduled obstacle for a step of size `h`: its displacement
+    /// over the step (across schedule pieces) divided by `h`.
+    fn schedule_obstacles(&mut self, h: f64) {
+        let t0 = self.state.time;
+        for (k, o) in self.model.obstacles.iter().enumerate() {
+            if let Some(d) = o.scheduled_displacement(t0, t0 + h) {
+                let v = d / h;
+                self.state.obstacle_velocities[k * D..k * D + D].copy_from_slice(v.as_slice());
+            }
+        }
+    }
+
     /// What the step starts from.
     fn step_start(&self, h: f64) -> StepStart<D> {
         let ndof = self.state.velocity.len();
@@ -152,6 +164,7 @@ where
         if let Some(detector) = self.caches.detector.as_mut() {
             detector.set_memory(&self.state.contact_memory.detection);
         }
+        self.schedule_obstacles(h);
         let start = self.step_start(h);
         recorder.step_start(self, start.step);
         let solution = self.solve_step(&start, recorder)?;

@@ -329,6 +329,37 @@ fn bad_meshes() {
 }
 
 #[test]
+fn obstacle_motion_schedules() {
+    assert_bad_scene(
+        "motion_and_velocity",
+        Expect {
+            key: "obstacles.0.motion",
+            marker: Some("motion = ["),
+            found: "both `velocity` and `motion`",
+            expected: "a constant `velocity` or a `motion` schedule",
+        },
+    );
+    assert_bad_scene(
+        "motion_until_not_increasing",
+        Expect {
+            key: "obstacles.0.motion.1.until",
+            marker: Some("until = 0.004"),
+            found: "0.004",
+            expected: "after the previous entry's (0.005)",
+        },
+    );
+    assert_bad_scene(
+        "motion_rotation",
+        Expect {
+            key: "obstacles.0.motion.0.angular_velocity",
+            marker: Some("angular_velocity = 0.5"),
+            found: "[0.5]",
+            expected: "rotating obstacles are not available yet",
+        },
+    );
+}
+
+#[test]
 fn selections_and_names() {
     assert_bad_scene(
         "region_empty",

@@ -230,24 +230,7 @@ impl LoadedScene {
         }
         if let Some(w) = &spec.initial_angular_velocity {
             let k = format!("{key}.initial_angular_velocity");
-            body.initial_angular_velocity = match (w, <Dim<D>>::ANGULAR) {
-                (AngularSpec::Scalar(x), 1) => vec![*x],
-                (AngularSpec::Vector(v), 3) if v.len() == 3 => v.clone(),
-                _ => {
-                    return Err(self.error(
-                        &k,
-                        format!("{w:?}"),
-                        if D == 2 {
-                            "a number [rad/s] in 2D"
-                        } else {
-                            "a vector [wx, wy, wz] [rad/s] in 3D"
-                        },
-                    ))
-                }
-            };
-            if body.initial_angular_velocity.iter().any(|x| !x.is_finite()) {
-                return Err(self.error(&k, format!("{w:?}"), "finite numbers"));
-            }
+            body.initial_angular_velocity = self.angular::<D>(&k, w)?;
         }
         for (c, cs) in spec.constraints.iter().enumerate() {
             let ck = format!("{key}.constraints.{c}");
@@ -483,6 +466,32 @@ impl LoadedScene {
             }
         };
         Ok(Constraint { nodes, velocity })
+    }
+
+    /// An angular velocity: a number in 2D, a vector `[wx, wy, wz]` in 3D, finite [rad/s].
+    pub(super) fn angular<const D: usize>(&self, key: &str, w: &AngularSpec) -> Result<Vec<f64>>
+    where
+        Dim<D>: SpatialDim<D>,
+    {
+        let values = match (w, <Dim<D>>::ANGULAR) {
+            (AngularSpec::Scalar(x), 1) => vec![*x],
+            (AngularSpec::Vector(v), 3) if v.len() == 3 => v.clone(),
+            _ => {
+                return Err(self.error(
+                    key,
+                    format!("{w:?}"),
+                    if D == 2 {
+                        "a number [rad/s] in 2D"
+                    } else {
+                        "a vector [wx, wy, wz] [rad/s] in 3D"
+                    },
+                ))
+            }
+        };
+        if values.iter().any(|x| !x.is_finite()) {
+            return Err(self.error(key, format!("{w:?}"), "finite numbers"));
+        }
+        Ok(values)
     }
 
     pub(super) fn vector<const D: usize>(&self, key: &str, v: &[f64]) -> Result<SVector<f64, D>> {

@@ -3,7 +3,7 @@
 
 use super::schema::{ObstacleSection, ShapeSpec};
 use super::LoadedScene;
-use crate::contact::{Obstacle, ObstacleShape};
+use crate::contact::{MotionSegment, Obstacle, ObstacleShape};
 use crate::dim::{Dim, SpatialDim};
 use crate::error::{Error, Result};
 
@@ -24,6 +24,48 @@ impl LoadedScene {
         let mut obstacle = Obstacle::new(spec.name.clone(), shape);
         if let Some(v) = &spec.velocity {
             obstacle.velocity = self.vector::<D>(&format!("{key}.velocity"), v)?;
+        }
+        if let Some(motion) = &spec.motion {
+            if spec.velocity.is_some() {
+                return Err(self.error(
+                    &format!("{key}.motion"),
+                    "both `velocity` and `motion`",
+                    "one of them: a constant `velocity` or a `motion` schedule",
+                ));
+            }
+            let mut previous = 0.0;
+            for (i, m) in motion.iter().enumerate() {
+                let mk = format!("{key}.motion.{i}");
+                if !(m.until > previous && m.until.is_finite()) {
+                    return Err(self.error(
+                        &format!("{mk}.until"),
+                        m.until,
+                        format!("a finite time [s] after the previous entry's ({previous})"),
+                    ));
+                }
+                previous = m.until;
+                let velocity = self.vector::<D>(&format!("{mk}.velocity"), &m.velocity)?;
+                let angular_velocity = match &m.angular_velocity {
+                    Some(w) => self.angular::<D>(&format!("{mk}.angular_velocity"), w)?,
+                    None => Vec::new(),
+                };
+                if angular_velocity.iter().any(|w| *w != 0.0) {
+                    return Err(self.error(
+                        &format!("{mk}.angular_velocity"),
+                        format!("{angular_velocity:?}"),
+                        "0: obstacles translate only in this version (rotating obstacles are \
+                         not available yet)",
+                    ));
+                }
+                obstacle.motion.push(MotionSegment {
+                    until: m.until,
+                    velocity,
+                    angular_velocity,
+                });
+            }
+        }
+        if let Some(p) = &spec.pivot {
+            obstacle.pivot = Some(self.vector::<D>(&format!("{key}.pivot"), p)?);
         }
         if let Some(f) = &spec.friction {
             obstacle.friction = Some(self.friction(&format!("{key}.friction"), f)?);

@@ -371,9 +371,28 @@ pub struct ObstacleSection {
     /// [m/s].
     #[serde(default)]
     pub velocity: Option<Vec<f64>>,
+    /// A piecewise-constant motion instead of `velocity`.
+    #[serde(default)]
+    pub motion: Option<Vec<MotionSpec>>,
+    /// The point rotations turn about [m].
+    #[serde(default)]
+    pub pivot: Option<Vec<f64>>,
     /// Overrides `[contact].friction`.
     #[serde(default)]
     pub friction: Option<FrictionSpec>,
+}
+
+/// One entry of an obstacle's `motion`.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MotionSpec {
+    /// End of the piece [s].
+    pub until: f64,
+    /// [m/s].
+    pub velocity: Vec<f64>,
+    /// [rad/s] about the pivot.
+    #[serde(default)]
+    pub angular_velocity: Option<AngularSpec>,
 }
 
 /// `[[probes]]`.

@@ -1,0 +1,186 @@
+//! Obstacles that follow a piecewise-constant motion schedule (`Obstacle::motion`, the scene's
+//! `motion`): the displacement is the exact integral of the schedule whatever the step, the
+//! obstacle stops after the last piece, and a plate driven down then held compresses a block
+//! by what it travelled.
+
+mod common;
+
+use common::{block, vec_d};
+use softway::contact::{MotionSegment, ObstacleShape};
+use softway::dim::{Dim, SpatialDim};
+use softway::prelude::*;
+
+fn piece<const D: usize>(until: f64, v: [f64; 3]) -> MotionSegment<D> {
+    MotionSegment {
+        until,
+        velocity: vec_d(v),
+        angular_velocity: Vec::new(),
+    }
+}
+
+/// A free block and a ball far from it; the ball follows `motion`.
+fn ball_on_a_schedule<const D: usize>(motion: Vec<MotionSegment<D>>, h: f64) -> Simulation<D>
+where
+    Dim<D>: SpatialDim<D>,
+{
+    let mesh: Mesh<D> = block([0.1, 0.1, 0.1], [1, 1, 1], false);
+    let steel = Material::LinearElastic(LinearElastic::new(2e11, 0.3, 7800.0).unwrap());
+    Simulation::<D>::builder()
+        .time_step(h)
+        .body(Body::new("block", mesh, steel))
+        .obstacle(
+            Obstacle::new(
+                "ball",
+                ObstacleShape::Ball {
+                    center: vec_d([10.0, 10.0, 10.0]),
+                    radius: 0.5,
+                },
+            )
+            .with_motion(motion),
+        )
+        .contact(ContactSettings {
+            method: ContactMethod::SoftWay,
+            penalty: 1e9,
+            ..Default::default()
+        })
+        .build()
+        .unwrap()
+}
+
+fn the_displacement_is_the_integral_of_the_schedule<const D: usize>()
+where
+    Dim<D>: SpatialDim<D>,
+{
+    let motion = vec![
+        piece::<D>(0.2, [0.05, 0.0, 0.0]),
+        piece::<D>(0.6, [0.0, 0.1, 0.0]),
+    ];
+    // A step that does not divide the pieces' ends: the steps across them are averaged.
+    let mut sim = ball_on_a_schedule::<D>(motion, 0.03);
+    let mut straddling = None;
+    while sim.state().time < 1.0 - 1e-12 {
+        let t0 = sim.state().time;
+        sim.step().unwrap();
+        if t0 < 0.2 && sim.state().time > 0.2 {
+            straddling = Some(sim.state().obstacle_velocities.clone());
+        }
+    }
+    let t = sim.obstacle_translation(0);
+    let expected = vec_d::<D>([0.05 * 0.2, 0.1 * 0.4, 0.0]);
+    assert!((t - expected).norm() < 1e-12, "{t:?} vs {expected:?}");
+    // The step from 0.18 to 0.21: 0.02 s at (0.05, 0) and 0.01 s at (0, 0.1).
+    let v = straddling.expect("a step across t = 0.2");
+    assert!((v[0] - 0.05 * 0.02 / 0.03).abs() < 1e-12, "{v:?}");
+    assert!((v[1] - 0.1 * 0.01 / 0.03).abs() < 1e-12, "{v:?}");
+    // Stopped after the last piece.
+    assert!(sim.state().obstacle_velocities.iter().all(|v| *v == 0.0));
+    // A scheduled obstacle's velocity is not the host's to set.
+    assert!(sim
+        .set_obstacle_velocity(0, vec_d([1.0, 0.0, 0.0]))
+        .is_err());
+}
+
+fn bad_schedules_are_refused<const D: usize>()
+where
+    Dim<D>: SpatialDim<D>,
+{
+    let build = |motion: Vec<MotionSegment<D>>| {
+        let mesh: Mesh<D> = block([0.1, 0.1, 0.1], [1, 1, 1], false);
+        let steel = Material::LinearElastic(LinearElastic::new(2e11, 0.3, 7800.0).unwrap());
+        Simulation::<D>::builder()
+            .body(Body::new("block", mesh, steel))
+            .obstacle(
+                Obstacle::new(
+                    "plane",
+                    ObstacleShape::Halfspace {
+                        point: vec_d([0.0, -1.0, -1.0]),
+                        normal: vec_d([0.0, 1.0, 1.0]),
+                    },
+                )
+                .with_motion(motion),
+            )
+            .contact(ContactSettings {
+                method: ContactMethod::SoftWay,
+                penalty: 1e9,
+                ..Default::default()
+            })
+            .build()
+    };
+    let not_increasing = vec![piece::<D>(0.5, [0.0; 3]), piece::<D>(0.5, [0.0; 3])];
+    let err = build(not_increasing).err().expect("refused").to_string();
+    assert!(err.contains("motion.1.until"), "{err}");
+    let infinite = vec![piece::<D>(f64::INFINITY, [0.0; 3])];
+    assert!(build(infinite).is_err());
+    let mut turning = piece::<D>(0.5, [0.0; 3]);
+    turning.angular_velocity = vec![0.5; <Dim<D>>::ANGULAR];
+    let err = build(vec![turning]).err().expect("refused").to_string();
+    assert!(err.contains("angular_velocity"), "{err}");
+}
+
+fn a_plate_driven_down_then_held_compresses_a_block<const D: usize>()
+where
+    Dim<D>: SpatialDim<D>,
+{
+    // A 0.1 m block on a floor; a plate 1 mm above it comes down at 0.02 m/s for 0.1 s
+    // (2 mm: 1 mm to touch, 1 mm into the block), then holds.
+    let mesh: Mesh<D> = block([0.1, 0.1, 0.1], [4, 4, 4], false);
+    let rubber = Material::LinearElastic(LinearElastic::new(1e6, 0.3, 1000.0).unwrap());
+    let (mut up, mut top) = ([0.0; 3], [0.0; 3]);
+    up[D - 1] = 1.0;
+    top[D - 1] = 0.101;
+    let mut down = [0.0; 3];
+    down[D - 1] = -0.02;
+    let mut sim = Simulation::<D>::builder()
+        .time_step(2e-3)
+        .body(Body::new("block", mesh, rubber))
+        .obstacle(Obstacle::new(
+            "floor",
+            ObstacleShape::Halfspace {
+                point: vec_d([0.0; 3]),
+                normal: vec_d(up),
+            },
+        ))
+        .obstacle(
+            Obstacle::new(
+                "plate",
+                ObstacleShape::Halfspace {
+                    point: vec_d(top),
+                    normal: -vec_d::<D>(up),
+                },
+            )
+            .with_motion(vec![piece::<D>(0.1, down)]),
+        )
+        .contact(ContactSettings {
+            method: ContactMethod::SoftWay,
+            penalty: 1e10,
+            ..Default::default()
+        })
+        .build()
+        .unwrap();
+    let mut last = None;
+    while sim.state().time < 0.3 - 1e-12 {
+        last = Some(sim.step().unwrap());
+    }
+    let report = last.unwrap();
+    assert!((sim.obstacle_translation(1)[D - 1] + 0.002).abs() < 1e-12);
+    // The block is squeezed between floor and plate by about 1 mm of 0.1 m: forces along the
+    // axis of about E A (1 mm / 0.1 m) (plane strain stiffens it by 1/(1 - nu^2); within a
+    // factor 2 of E A strain).
+    let (floor, plate) = (
+        report.contact_forces[0][D - 1],
+        report.contact_forces[1][D - 1],
+    );
+    assert!(floor > 0.0 && plate < 0.0, "{floor} {plate}");
+    let area = if D == 2 { 0.1 } else { 0.01 };
+    let expected = 1e6 * area * 0.01;
+    assert!(
+        plate.abs() > 0.5 * expected && plate.abs() < 2.0 * expected,
+        "plate force {plate} against E A strain {expected}"
+    );
+}
+
+both_dims!(
+    the_displacement_is_the_integral_of_the_schedule,
+    bad_schedules_are_refused,
+    a_plate_driven_down_then_held_compresses_a_block,
+);
