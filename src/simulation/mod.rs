@@ -561,6 +561,7 @@ where
             contact_energy: 0.0,
             multipliers: Vec::new(),
             friction_normals: Vec::new(),
+            friction_anchors: Vec::new(),
             reference_energy: 0.0,
             material_history: vec![0.0; assembly::history_len(&table, &integration)],
             contact_memory: ContactMemory::default(),
@@ -659,7 +660,11 @@ where
 
     /// The handle of the body called `name`.
     pub fn body_id(&self, name: &str) -> Option<BodyId> {
-        self.model.bodies.iter().position(|b| b.name == name).map(BodyId)
+        self.model
+            .bodies
+            .iter()
+            .position(|b| b.name == name)
+            .map(BodyId)
     }
 
     /// The state (time, displacements, velocities, works).
