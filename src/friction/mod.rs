@@ -1,11 +1,37 @@
 //! Friction: the tangential laws of section 3.2 of the paper (Coulomb, Tresca, viscoplastic)
 //! and their stick/slip logic, evaluated per contact pair.
 //!
-//! Friction acts on the mean relative tangential velocity over the step,
-//! `v_t = (I - n n) (v_rel(v0) + v_rel(v1)) / 2`, so that the dissipated work `-F_t . v_t h` is
-//! the work along the slip of eq 22. Coulomb's threshold `mu F_n` follows the normal force by a
-//! fixed point between Newton solves ([`threshold_change`]): each inner problem is a Tresca
-//! problem with a symmetric tangent.
+//! **Penalty methods (soft way, augmented Lagrangian): a return map.** Coulomb and Tresca are
+//! a tangential penalty with an elastic-slip anchor (Wriggers 2006, Laursen 2002; the notes'
+//! section 3), [`return_map`]. Each contact carries its elastic slip `s_e` in the state (reset
+//! when the contact opens, re-projected onto the current tangent plane). With the slip
+//! increment `h w_t`, `w_t = (I - n n) w1` the relative tangential *end* velocity (not the
+//! trapezoid mean: with the mean, stick would force `w_t1 = -w_t0`), the trial force is
+//!
+//! ```text
+//! F_tr = -eps_t A (s_e + h w_t)
+//! stick (|F_tr| <= limit): F_t = F_tr,              s_e <- s_e + h w_t
+//! slip  (|F_tr| >  limit): F_t = limit F_tr/|F_tr|, s_e <- -F_t / (eps_t A)
+//! ```
+//!
+//! with `limit = mu F_n` (Coulomb, the *current* normal force of the iterate: no lagged fixed
+//! point) or `limit = tau_max A` (Tresca, while the contact is closed). The tangential penalty
+//! is the normal one, `eps_t = zeta` [Pa/m]: the elastic slip in stick is at most `mu` times the
+//! penetration, and it does not drift (an anchor, not a damper). The consistent tangent
+//! `d(-F_t)/dw1` is `eps_t A h (I - n n)` in stick and `(limit eps_t A h/|F_tr|)(I - n n - t t)`
+//! in slip; the slip's rank-one coupling of the threshold to the gap, `mu t dF_n/dv1`, is not
+//! symmetric and is left out of the iteration matrix (symmetric quasi-Newton, with
+//! backtracking; it is returned apart so that the tangent can be checked whole).
+//!
+//! **Implicit projection** keeps the smooth law `F_t = -mu F_n v_t / sqrt(|v_t|^2 + v_reg^2)`
+//! ([`FrictionLaw::force`]) on the mean relative tangential velocity
+//! `v_t = (I - n n) (w0 + w1)/2`, `v_reg` the `regularization` [m/s] (a creep velocity in
+//! stick), and Coulomb's threshold `mu F_n` follows the normal force by a fixed point between
+//! Newton solves ([`threshold_change`]). Viscoplastic friction is that smooth law everywhere.
+//!
+//! Dissipation is booked in every case as `-F_t . (h/2)(I - n n)(w0 + w1)`, the work along the
+//! slip of eq 22 (the displacement of the configuration update): the energy account stays
+//! closed, the elastic slip's energy included (returned when a stuck contact unloads).
 
 use std::collections::BTreeMap;
 
@@ -24,15 +50,17 @@ pub enum FrictionLaw {
     /// No tangential force.
     #[default]
     Frictionless,
-    /// `|F_t| <= mu F_n`: `F_t = -mu F_n v_t / sqrt(|v_t|^2 + v_reg^2)`, a stick regularised
-    /// below `regularization` [m/s] of slip rate.
+    /// `|F_t| <= mu F_n`. Under penalty methods, the return map (module docs); under implicit
+    /// projection, `F_t = -mu F_n v_t / sqrt(|v_t|^2 + v_reg^2)`, a stick regularised below
+    /// `regularization` [m/s] of slip rate.
     Coulomb {
         /// mu [-].
         coefficient: f64,
         /// Slip-rate scale of the regularised stick [m/s].
         regularization: f64,
     },
-    /// `|F_t| <= limit A` (a limit shear stress), regularised like Coulomb.
+    /// `|F_t| <= limit A` (a limit shear stress) on closed contacts: the return map under
+    /// penalty methods, regularised like Coulomb under implicit projection.
     Tresca {
         /// Limit shear stress [Pa].
         limit: f64,
@@ -149,6 +177,80 @@ impl FrictionLaw {
                 (force, d)
             }
         }
+    }
+}
+
+/// The outcome of the return map of one contact.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct ReturnMap<const D: usize> {
+    /// Friction force on the slave [N] (in the tangent plane).
+    pub force: SVector<f64, D>,
+    /// The elastic slip after the step [m] (`-force / (eps_t A)`).
+    pub anchor: SVector<f64, D>,
+    /// Whether the contact slips.
+    pub slipping: bool,
+    /// `d(-force)/dw1`, w1 the relative end velocity, the limit held fixed [N s/m] (symmetric).
+    pub tangent: SMatrix<f64, D, D>,
+    /// `d force / d limit` (the slip direction in slip, zero in stick) [-].
+    pub d_limit: SVector<f64, D>,
+}
+
+impl FrictionLaw {
+    /// Whether the law is a return map under penalty methods (Coulomb, Tresca).
+    pub fn has_return_map(&self) -> bool {
+        matches!(
+            self,
+            FrictionLaw::Coulomb { .. } | FrictionLaw::Tresca { .. }
+        )
+    }
+
+    /// The return map's slip limit [N] for a normal force `normal_force` [N] and a contact area
+    /// `area` [m^2] (zero for an open contact or a law without a return map).
+    pub fn slip_limit(&self, normal_force: f64, area: f64) -> f64 {
+        if normal_force <= 0.0 {
+            return 0.0;
+        }
+        match *self {
+            FrictionLaw::Coulomb { coefficient, .. } => coefficient * normal_force,
+            FrictionLaw::Tresca { limit, .. } => limit * area,
+            _ => 0.0,
+        }
+    }
+}
+
+/// The return map of one closed contact (module docs): slip limit `limit` [N], tangential
+/// stiffness `stiffness = eps_t A` [N/m], the previous elastic slip `anchor` [m] (re-projected
+/// here onto the tangent plane of `normal`), the relative end velocity `w1` [m/s] and the step
+/// `h` [s]. `|F_tr| <= limit` (F_tr = 0 included) is stick.
+pub(crate) fn return_map<const D: usize>(
+    limit: f64,
+    stiffness: f64,
+    anchor: &SVector<f64, D>,
+    w1: &SVector<f64, D>,
+    normal: &SVector<f64, D>,
+    h: f64,
+) -> ReturnMap<D> {
+    let plane = SMatrix::<f64, D, D>::identity() - normal * normal.transpose();
+    let trial_slip = plane * (anchor + w1 * h);
+    let trial = -trial_slip * stiffness;
+    let size = trial.norm();
+    if size <= limit || stiffness <= 0.0 {
+        return ReturnMap {
+            force: trial,
+            anchor: trial_slip,
+            slipping: false,
+            tangent: plane * (stiffness * h),
+            d_limit: SVector::zeros(),
+        };
+    }
+    let t = trial / size;
+    let force = t * limit;
+    ReturnMap {
+        force,
+        anchor: -force / stiffness,
+        slipping: true,
+        tangent: (plane - t * t.transpose()) * (limit * stiffness * h / size),
+        d_limit: t,
     }
 }
 
@@ -292,5 +394,58 @@ mod tests {
         let (f, _) = law.force(1.0, 2.0, &Vector2::new(0.3, 0.0), &n);
         let expected = -0.05 * 2.0 * 0.3f64.powf(0.1);
         assert!((f.x - expected).abs() < 1e-12);
+    }
+    /// The return map's tangent against central differences, in stick and in slip.
+    fn check_return_map<const D: usize>(anchor: SVector<f64, D>, w1: SVector<f64, D>, slips: bool) {
+        let mut n = SVector::<f64, D>::zeros();
+        n[D - 1] = 0.8;
+        n[0] = 0.6;
+        let (limit, k, h) = (3.0, 1e4, 1e-3);
+        let r = return_map(limit, k, &anchor, &w1, &n, h);
+        assert_eq!(r.slipping, slips, "{anchor:?} {w1:?}");
+        assert!(r.force.norm() <= limit * (1.0 + 1e-12));
+        assert!(r.force.dot(&n).abs() < 1e-12);
+        assert!((r.anchor * -k - r.force).norm() < 1e-12);
+        let eps = 1e-6;
+        for j in 0..D {
+            let mut e = SVector::<f64, D>::zeros();
+            e[j] = eps;
+            let fp = return_map(limit, k, &anchor, &(w1 + e), &n, h).force;
+            let fm = return_map(limit, k, &anchor, &(w1 - e), &n, h).force;
+            let fd = -(fp - fm) / (2.0 * eps);
+            assert!(
+                (r.tangent.column(j) - fd).norm() <= 1e-6 * k * h,
+                "column {j}: {:?} vs {fd:?}",
+                r.tangent.column(j)
+            );
+        }
+        assert!((r.tangent - r.tangent.transpose()).amax() < 1e-12 * k * h);
+        // The derivative with respect to the limit.
+        let dl = 1e-6;
+        let fp = return_map(limit + dl, k, &anchor, &w1, &n, h).force;
+        let fm = return_map(limit - dl, k, &anchor, &w1, &n, h).force;
+        assert!(((fp - fm) / (2.0 * dl) - r.d_limit).norm() < 1e-6);
+    }
+
+    #[test]
+    fn return_map_tangent_matches_finite_differences() {
+        use nalgebra::Vector3;
+        // Stick: a small elastic slip; slip: an anchor beyond the cone.
+        check_return_map::<2>(Vector2::new(1e-4, 0.0), Vector2::new(0.05, 0.1), false);
+        check_return_map::<2>(Vector2::new(1e-3, 0.0), Vector2::new(0.05, 0.1), true);
+        check_return_map::<2>(Vector2::new(0.0, 0.0), Vector2::new(-2.0, 0.1), true);
+        let a = Vector3::new(-8e-5, 1e-4, 0.0);
+        check_return_map::<3>(a, Vector3::new(0.05, -0.1, 0.1), false);
+        check_return_map::<3>(a * 10.0, Vector3::new(0.05, -0.1, 0.1), true);
+        // F_tr = 0 is stick.
+        let r = return_map(
+            0.0,
+            1.0,
+            &Vector2::zeros(),
+            &Vector2::zeros(),
+            &Vector2::y(),
+            1.0,
+        );
+        assert!(!r.slipping && r.force == Vector2::zeros());
     }
 }

@@ -13,6 +13,10 @@ use crate::contact::gap::{facet_gap, facet_gap_hessian, obstacle_gap_hessian};
 use crate::contact::methods::{Method, NormalInput, OuterVariables, PairOutcome};
 use crate::contact::{ContactKey, ContactPair, FrictionLaw, Master, MasterId, Obstacle};
 use crate::dim::{Dim, Kinematics, SpatialDim};
+use crate::friction::return_map;
+
+/// A rank-one matrix `u v^T` with sparse `u` and `v` (index, value).
+pub(super) type RankOne = (Vec<(usize, f64)>, Vec<(usize, f64)>);
 
 /// Everything contact adds to one iteration.
 #[derive(Default)]
@@ -26,6 +30,11 @@ pub(super) struct ContactTerms<const D: usize> {
     pub geometric: Vec<(usize, usize, f64)>,
     /// Every pair's forces.
     pub pairs: Vec<PairOutcome<D>>,
+    /// The non-symmetric part of `d(-forces)/dv1` left out of `entries`: Coulomb slip's
+    /// coupling of the threshold to the gap, `-mu t dF_n/dv1`, one rank-one term `u v^T` per
+    /// slipping contact (sparse `u`, `v`). Newton adds it to the symmetric solves by the
+    /// Sherman-Morrison-Woodbury formula, so that the Cholesky never sees it.
+    pub coupling: Vec<RankOne>,
     /// Penalty energy stored in the gaps [J].
     pub energy: f64,
     /// Friction dissipation rate [W].
@@ -52,6 +61,8 @@ pub(super) struct TermsInput<'a, const D: usize> {
     pub vars: &'a OuterVariables,
     /// The Coulomb thresholds (normal forces) of the friction fixed point [N].
     pub friction_normals: &'a BTreeMap<ContactKey, f64>,
+    /// The elastic slips of the return-map laws at the start of the step [m].
+    pub friction_anchors: &'a BTreeMap<ContactKey, SVector<f64, D>>,
     /// The diagonal of the contact-free iteration matrix.
     pub diagonal: &'a [f64],
 }
@@ -231,22 +242,52 @@ where
                 .normal_law(&law_input, input.vars, &self.model.contact);
             let (normal_force, normal_stiffness, pressure) =
                 (normal_law.force, normal_law.stiffness, normal_law.pressure);
-            // Friction takes the normal force of the previous pass (a fixed point on the
-            // friction threshold: a sequence of Tresca problems, each with a symmetric tangent).
             let law = self.friction_law(obstacle);
-            // Only Coulomb's threshold depends on the force; the other laws need the status.
-            let threshold = match law {
-                FrictionLaw::Coulomb { .. } => {
-                    input.friction_normals.get(&key).copied().unwrap_or(0.0)
-                }
-                _ => normal_force,
-            };
-            let (friction, friction_tangent) =
-                if threshold > 0.0 && law != FrictionLaw::Frictionless {
-                    law.force(threshold, area, &slip, &normal)
+            // d(-friction)/dw1 (w1 the relative end velocity), the elastic slip after the
+            // step, and d friction/d F_n (the non-symmetric coupling).
+            let mut anchor = None;
+            let mut d_normal_force = SVector::<f64, D>::zeros();
+            let (friction, friction_tangent) = if law == FrictionLaw::Frictionless {
+                (SVector::zeros(), SMatrix::zeros())
+            } else if input.method.friction_return_map() && law.has_return_map() {
+                // The return map on the current normal force: the elastic slip is reset
+                // when the contact opens.
+                let limit = law.slip_limit(normal_force, area);
+                if normal_force > 0.0 {
+                    let previous = input
+                        .friction_anchors
+                        .get(&key)
+                        .copied()
+                        .unwrap_or_else(SVector::zeros);
+                    let stiffness = self.model.contact.penalty * area;
+                    let map = return_map(limit, stiffness, &previous, &r1, &normal, h);
+                    anchor = Some(map.anchor);
+                    if matches!(law, FrictionLaw::Coulomb { .. }) {
+                        d_normal_force = map.d_limit * law.slip_limit(1.0, area);
+                    }
+                    (map.force, map.tangent)
                 } else {
                     (SVector::zeros(), SMatrix::zeros())
+                }
+            } else {
+                // The smooth law on the mean tangential velocity with the normal force of the
+                // previous pass (a fixed point on the threshold: a sequence of Tresca problems,
+                // each with a symmetric tangent). Only Coulomb's threshold depends on the
+                // force; the other laws need the status.
+                let threshold = match law {
+                    FrictionLaw::Coulomb { .. } => {
+                        input.friction_normals.get(&key).copied().unwrap_or(0.0)
+                    }
+                    _ => normal_force,
                 };
+                if threshold > 0.0 {
+                    let (f, d) = law.force(threshold, area, &slip, &normal);
+                    // d slip/d w1 = (I - n n)/2.
+                    (f, -d * 0.5)
+                } else {
+                    (SVector::zeros(), SMatrix::zeros())
+                }
+            };
             let force = normal * normal_force + friction;
             for &(n, c) in &nodes {
                 for k in 0..D {
@@ -275,10 +316,23 @@ where
                 } else {
                     None
                 };
+                if d_normal_force != SVector::<f64, D>::zeros() {
+                    // d(-F_t)/dv1 through F_n, which falls by `normal_stiffness` per unit of
+                    // n . w1: u v^T with u = B^T mu t, v = B^T n normal_stiffness.
+                    let spread = |x: SVector<f64, D>| -> Vec<(usize, f64)> {
+                        nodes
+                            .iter()
+                            .flat_map(|&(n, c)| (0..D).map(move |i| (n * D + i, c * x[i])))
+                            .filter(|&(_, x)| x != 0.0)
+                            .collect()
+                    };
+                    terms
+                        .coupling
+                        .push((spread(d_normal_force), spread(normal * normal_stiffness)));
+                }
                 for (a, &(na, ca)) in nodes.iter().enumerate() {
                     for (b, &(nb, cb)) in nodes.iter().enumerate() {
-                        let block =
-                            nn * (normal_stiffness * ca * cb) - friction_tangent * (0.5 * ca * cb);
+                        let block = (nn * normal_stiffness + friction_tangent) * (ca * cb);
                         block_entries(&mut terms.entries, na, nb, &block);
                         if let Some(hess) = &geometric {
                             let g = SMatrix::<f64, D, D>::from_fn(|i, j| {
@@ -303,6 +357,7 @@ where
                 master_point,
                 obstacle,
                 normal_velocity,
+                anchor,
             });
         }
         terms

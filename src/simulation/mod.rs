@@ -562,6 +562,7 @@ where
             contact_energy: 0.0,
             multipliers: Vec::new(),
             friction_normals: Vec::new(),
+            friction_anchors: Vec::new(),
             reference_energy: 0.0,
             material_history: vec![0.0; assembly::history_len(&table, &integration)],
             contact_memory: ContactMemory::default(),

@@ -10,7 +10,7 @@ use std::collections::BTreeMap;
 
 use nalgebra::SVector;
 
-use super::contact_terms::{ContactTerms, TermsInput};
+use super::contact_terms::{ContactTerms, RankOne, TermsInput};
 use super::observe::{IterationInfo, Recorder};
 use super::{end_positions, Simulation};
 use crate::assembly::{self, KernelFields};
@@ -22,6 +22,16 @@ use crate::friction::{threshold_change, ThresholdSample};
 
 /// Halvings of a Newton increment while the residual grows.
 const MAX_BACKTRACKS: usize = 4;
+
+/// Most slipping Coulomb contacts whose threshold-to-gap coupling enters the Newton solve
+/// (one extra symmetric solve each); beyond, Newton goes on without it (quasi-Newton).
+const MAX_COUPLED: usize = 64;
+
+/// Whether the coupled solve is on. Off for now: with it, tests/pipeline.rs's retried step no
+/// longer reproduced the uninterrupted one bit for bit (3D, soft way with Coulomb: the retry
+/// needed a step cut), a dependence on something outside the state not found yet. Off, slip's
+/// coupling is left out (symmetric quasi-Newton with backtracking).
+const COUPLED_SOLVE: bool = false;
 
 /// What a step starts from.
 pub(super) struct StepStart<const D: usize> {
@@ -83,6 +93,73 @@ where
                 .any(|o| o.friction.is_some_and(|f| f != FrictionLaw::Frictionless))
     }
 
+    /// A solve with the symmetric contact iteration matrix `A0 + entries` (no geometric part):
+    /// the nearest factorisation with conjugate gradients, or a new factorisation.
+    fn symmetric_solve(
+        &mut self,
+        entries: &[(usize, usize, f64)],
+        b: &[f64],
+        target: f64,
+        h: f64,
+        step: usize,
+    ) -> Result<Vec<f64>> {
+        match self.preconditioned_solve(entries, &[], b, target) {
+            Some(x) => Ok(x),
+            None => self.factor_contact(entries, &[], b, target, h, step),
+        }
+    }
+
+    /// Solves `(A0 + entries + sum u v^T) x = b`, the iteration matrix with the non-symmetric
+    /// coupling of Coulomb slip (one rank-one term per slipping contact), by the
+    /// Sherman-Morrison-Woodbury formula on symmetric solves:
+    /// `x = x0 - Z (I + V^T Z)^-1 V^T x0`, `x0 = S^-1 b`, `Z = S^-1 U`. The Cholesky only ever
+    /// sees the symmetric part; the geometric part of the tangent is left out here.
+    fn solve_coupled(
+        &mut self,
+        entries: &[(usize, usize, f64)],
+        coupling: &[RankOne],
+        b: &[f64],
+        target: f64,
+        h: f64,
+        step: usize,
+    ) -> Result<Vec<f64>> {
+        let ndof = b.len();
+        let mut x = self.symmetric_solve(entries, b, target, h, step)?;
+        let m = coupling.len();
+        let mut z = Vec::with_capacity(m);
+        for (u, _) in coupling {
+            let mut rhs = vec![0.0; ndof];
+            for &(i, a) in u {
+                if self.prescribed[i].is_none() {
+                    rhs[i] += a;
+                }
+            }
+            let norm = rhs.iter().map(|r| r * r).sum::<f64>().sqrt();
+            z.push(self.symmetric_solve(entries, &rhs, 1e-10 * norm, h, step)?);
+        }
+        let mut g = nalgebra::DMatrix::<f64>::identity(m, m);
+        let mut r = nalgebra::DVector::<f64>::zeros(m);
+        for (k, (_, v)) in coupling.iter().enumerate() {
+            for &(i, c) in v {
+                if self.prescribed[i].is_none() {
+                    r[k] += c * x[i];
+                    for (l, zl) in z.iter().enumerate() {
+                        g[(k, l)] += c * zl[i];
+                    }
+                }
+            }
+        }
+        // A singular capacitance matrix: go on without the coupling.
+        if let Some(y) = g.lu().solve(&r) {
+            for (l, zl) in z.iter().enumerate() {
+                for i in 0..ndof {
+                    x[i] -= zl[i] * y[l];
+                }
+            }
+        }
+        Ok(x)
+    }
+
     /// Newton with the contact method's outer loop: the end velocities of the step.
     pub(super) fn solve_step(
         &mut self,
@@ -113,6 +190,13 @@ where
             .friction_normals
             .iter()
             .map(|&(s, m, f)| ((s, m), f))
+            .collect();
+        // The elastic slips of the return-map laws (world components).
+        let friction_anchors: BTreeMap<ContactKey, SVector<f64, D>> = self
+            .state
+            .friction_anchors
+            .iter()
+            .map(|(s, m, a)| ((*s, *m), SVector::from_column_slice(a)))
             .collect();
         let mut vars = OuterVariables::default();
         if method.carries_multipliers() {
@@ -185,6 +269,7 @@ where
                         areas: &start.areas,
                         vars: &vars,
                         friction_normals: &friction_normals,
+                        friction_anchors: &friction_anchors,
                         diagonal: &diagonal,
                     },
                 );
@@ -285,8 +370,9 @@ where
                     OuterUpdate::Again => false,
                     OuterUpdate::Cycle => return Err(not_converged(iterations, rel)),
                 };
-                if done && frictional {
-                    // The friction threshold follows the normal force until it settles.
+                if done && frictional && !method.friction_return_map() {
+                    // The smooth law's threshold follows the normal force until it settles
+                    // (the return map reads the current normal force instead).
                     let samples: Vec<ThresholdSample<ContactKey>> = terms
                         .pairs
                         .iter()
@@ -338,6 +424,18 @@ where
                     self.solve_with_tangent(&tangent_values, &entries, &increment, h, step)?;
             } else if terms.entries.is_empty() {
                 self.solve_contact_free(&mut increment);
+            } else if COUPLED_SOLVE
+                && !terms.coupling.is_empty()
+                && terms.coupling.len() <= MAX_COUPLED
+            {
+                increment = self.solve_coupled(
+                    &terms.entries,
+                    &terms.coupling,
+                    &increment,
+                    target,
+                    h,
+                    step,
+                )?;
             } else if let Some(x) =
                 self.preconditioned_solve(&terms.entries, &terms.geometric, &increment, target)
             {

@@ -37,6 +37,10 @@ pub struct State {
     /// The normal forces that set the friction thresholds (slave node, master, force [N]),
     /// carried from step to step as the start of the fixed point on the threshold.
     pub friction_normals: Vec<(usize, MasterId, f64)>,
+    /// The elastic slips of the friction return map (slave node, master, D components [m]):
+    /// one per closed contact under a penalty method with Coulomb or Tresca friction, dropped
+    /// when the contact opens.
+    pub friction_anchors: Vec<(usize, MasterId, Vec<f64>)>,
     /// The energy stability is measured against at t = 0 [J] (E(0)).
     pub reference_energy: f64,
     /// Per-quadrature-point history of the materials that carry one, cell by cell.

@@ -315,6 +315,11 @@ where
             .iter()
             .map(|(&(s, m), &f)| (s, m, f))
             .collect();
+        state.friction_anchors = terms
+            .pairs
+            .iter()
+            .filter_map(|p| p.anchor.map(|a| (p.key.0, p.key.1, a.as_slice().to_vec())))
+            .collect();
         if !method.carries_multipliers() {
             state.multipliers.clear();
         }
@@ -381,7 +386,8 @@ mod tests {
         v1: &[f64],
         h: f64,
         friction_normals: &BTreeMap<(usize, MasterId), f64>,
-    ) -> (Vec<f64>, nalgebra::DMatrix<f64>) {
+        anchors: &BTreeMap<(usize, MasterId), Vector2<f64>>,
+    ) -> (Vec<f64>, nalgebra::DMatrix<f64>, [usize; 2]) {
         sim.ensure_system(h).unwrap();
         let n = v1.len();
         let u0 = sim.state.displacement.clone();
@@ -408,6 +414,7 @@ mod tests {
                 areas: &areas,
                 vars: &vars,
                 friction_normals,
+                friction_anchors: anchors,
                 diagonal: &diagonal,
             },
         );
@@ -418,23 +425,35 @@ mod tests {
                 k[(c, r)] += v;
             }
         }
-        (terms.forces, k)
+        for (u, w) in &terms.coupling {
+            for &(r, a) in u {
+                for &(c, b) in w {
+                    k[(r, c)] += a * b;
+                }
+            }
+        }
+        // Closed contacts, and those at the slip limit.
+        let closed = terms.pairs.iter().filter(|p| p.normal_force > 0.0);
+        let slipping = closed
+            .clone()
+            .filter(|p| p.friction.norm() >= (1.0 - 1e-9) * 0.4 * p.normal_force)
+            .count();
+        (terms.forces, k, [closed.count(), slipping])
     }
 
-    fn check(mut sim: Simulation2, friction: bool, tolerance: f64) {
+    /// The assembled contact tangent against central differences of the contact forces;
+    /// `anchors` are the elastic slips of the friction return map at the start of the step.
+    fn check(
+        mut sim: Simulation2,
+        anchors: &BTreeMap<(usize, MasterId), Vector2<f64>>,
+        tolerance: f64,
+    ) -> [usize; 2] {
         let h = 1e-3;
         let n = sim.state.velocity.len();
         // A velocity field that keeps every contact strictly open or strictly closed.
         let v1: Vec<f64> = (0..n).map(|i| 0.01 * ((i as f64) * 0.7).sin()).collect();
-        let mut normals = BTreeMap::new();
-        if friction {
-            // Freeze the thresholds at the current normal forces (the fixed point's inner problem).
-            let (_, _) = forces_and_tangent(&mut sim, &v1, h, &normals);
-            for s in 0..sim.node_count() {
-                normals.insert((s, MasterId::Obstacle(0)), 10.0);
-            }
-        }
-        let (_, k) = forces_and_tangent(&mut sim, &v1, h, &normals);
+        let normals = BTreeMap::new();
+        let (_, k, counts) = forces_and_tangent(&mut sim, &v1, h, &normals, anchors);
         assert!(k.amax() > 0.0, "no contact in the test configuration");
         let eps = 1e-7;
         let mut worst: f64 = 0.0;
@@ -442,8 +461,8 @@ mod tests {
             let (mut vp, mut vm) = (v1.clone(), v1.clone());
             vp[j] += eps;
             vm[j] -= eps;
-            let (fp, _) = forces_and_tangent(&mut sim, &vp, h, &normals);
-            let (fm, _) = forces_and_tangent(&mut sim, &vm, h, &normals);
+            let (fp, _, _) = forces_and_tangent(&mut sim, &vp, h, &normals, anchors);
+            let (fm, _, _) = forces_and_tangent(&mut sim, &vm, h, &normals, anchors);
             for i in 0..n {
                 // The tangent is d(-f)/dv1.
                 let fd = -(fp[i] - fm[i]) / (2.0 * eps);
@@ -455,6 +474,7 @@ mod tests {
             "tangent error {worst:e} of {:e}",
             k.amax()
         );
+        counts
     }
 
     fn block_on(obstacle: Obstacle<2>, friction: FrictionLaw, penetration: f64) -> Simulation2 {
@@ -498,7 +518,7 @@ mod tests {
         );
         check(
             block_on(plane, FrictionLaw::Frictionless, 1e-3),
-            false,
+            &BTreeMap::new(),
             1e-6,
         );
     }
@@ -515,7 +535,11 @@ mod tests {
         );
         // The curvature term is about 1.5 % of the tangent here (|g| / R); what remains is the
         // variation of the projected contact area with the normal, not in the tangent.
-        check(block_on(ball, FrictionLaw::Frictionless, 1e-2), false, 3e-3);
+        check(
+            block_on(ball, FrictionLaw::Frictionless, 1e-2),
+            &BTreeMap::new(),
+            3e-3,
+        );
     }
 
     #[test]
@@ -531,7 +555,23 @@ mod tests {
             coefficient: 0.4,
             regularization: 1e-3,
         };
-        check(block_on(plane, law, 1e-3), true, 1e-6);
+        // The return map on a block pressed 1 mm into a plane: every contact sticks without an
+        // elastic slip at the start (increments h w_t of ~1e-5 m against mu times the 1 mm
+        // penetration), and slips with one of 2 mm, either way.
+        for (elastic_slip, slips) in [(0.0, false), (2e-3, true), (-2e-3, true)] {
+            let sim = block_on(plane.clone(), law, 1e-3);
+            let mut anchors = BTreeMap::new();
+            for s in 0..sim.node_count() {
+                anchors.insert((s, MasterId::Obstacle(0)), Vector2::new(elastic_slip, 0.0));
+            }
+            let [closed, slipping] = check(sim, &anchors, 1e-6);
+            assert_eq!(closed, 5, "closed contacts");
+            assert_eq!(
+                slipping,
+                if slips { closed } else { 0 },
+                "elastic slip {elastic_slip}"
+            );
+        }
     }
 
     #[test]
@@ -565,7 +605,7 @@ mod tests {
             .unwrap();
         // The projected contact area follows the master's normal; that variation is not in
         // the tangent (a relative error of ~6e-4 here), everything else is.
-        check(sim, false, 1e-3);
+        check(sim, &BTreeMap::new(), 1e-3);
     }
 
     /// A block dropped at 1 m/s onto a plane 0.1 mm under it, `steps` steps of 1 ms; the

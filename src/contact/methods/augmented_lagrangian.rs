@@ -24,6 +24,10 @@ impl Method for AugmentedLagrangian {
         true
     }
 
+    fn friction_return_map(&self) -> bool {
+        true
+    }
+
     fn outer_update(
         &self,
         pairs: &[PairStatus],

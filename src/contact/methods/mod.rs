@@ -87,6 +87,8 @@ pub(crate) struct PairOutcome<const D: usize> {
     pub obstacle: Option<usize>,
     /// The relative normal end velocity [m/s].
     pub normal_velocity: f64,
+    /// The elastic slip after the step [m] (return-map laws on closed contacts).
+    pub anchor: Option<SVector<f64, D>>,
 }
 
 /// The normal state of one pair after a converged Newton solve.
@@ -183,6 +185,13 @@ pub(crate) trait Method: Sync {
 
     /// Whether the multipliers are carried to the next step.
     fn carries_multipliers(&self) -> bool {
+        false
+    }
+
+    /// Whether Coulomb and Tresca are the penalty return map (elastic-slip anchors, the
+    /// current normal force, [`crate::friction::return_map`]) rather than the smooth law with
+    /// the threshold's fixed point.
+    fn friction_return_map(&self) -> bool {
         false
     }
 }

@@ -36,4 +36,8 @@ impl Method for SoftWay {
     fn stores_energy(&self) -> bool {
         true
     }
+
+    fn friction_return_map(&self) -> bool {
+        true
+    }
 }
