@@ -18,8 +18,8 @@ fn piece<const D: usize>(until: f64, v: [f64; 3]) -> MotionSegment<D> {
     }
 }
 
-/// A free block and a ball far from it; the ball follows `motion`.
-fn ball_on_a_schedule<const D: usize>(motion: Vec<MotionSegment<D>>, h: f64) -> Simulation<D>
+/// A free steel block and `obstacle`.
+fn block_and<const D: usize>(obstacle: Obstacle<D>, h: f64) -> softway::Result<Simulation<D>>
 where
     Dim<D>: SpatialDim<D>,
 {
@@ -28,23 +28,25 @@ where
     Simulation::<D>::builder()
         .time_step(h)
         .body(Body::new("block", mesh, steel))
-        .obstacle(
-            Obstacle::new(
-                "ball",
-                ObstacleShape::Ball {
-                    center: vec_d([10.0, 10.0, 10.0]),
-                    radius: 0.5,
-                },
-            )
-            .with_motion(motion),
-        )
+        .obstacle(obstacle)
         .contact(ContactSettings {
             method: ContactMethod::SoftWay,
             penalty: 1e9,
             ..Default::default()
         })
         .build()
-        .unwrap()
+}
+
+/// A free block and a ball far from it; the ball follows `motion`.
+fn ball_on_a_schedule<const D: usize>(motion: Vec<MotionSegment<D>>, h: f64) -> Simulation<D>
+where
+    Dim<D>: SpatialDim<D>,
+{
+    let ball = ObstacleShape::Ball {
+        center: vec_d([10.0, 10.0, 10.0]),
+        radius: 0.5,
+    };
+    block_and(Obstacle::new("ball", ball).with_motion(motion), h).unwrap()
 }
 
 fn the_displacement_is_the_integral_of_the_schedule<const D: usize>()
@@ -85,26 +87,11 @@ where
     Dim<D>: SpatialDim<D>,
 {
     let build = |motion: Vec<MotionSegment<D>>| {
-        let mesh: Mesh<D> = block([0.1, 0.1, 0.1], [1, 1, 1], false);
-        let steel = Material::LinearElastic(LinearElastic::new(2e11, 0.3, 7800.0).unwrap());
-        Simulation::<D>::builder()
-            .body(Body::new("block", mesh, steel))
-            .obstacle(
-                Obstacle::new(
-                    "plane",
-                    ObstacleShape::Halfspace {
-                        point: vec_d([0.0, -1.0, -1.0]),
-                        normal: vec_d([0.0, 1.0, 1.0]),
-                    },
-                )
-                .with_motion(motion),
-            )
-            .contact(ContactSettings {
-                method: ContactMethod::SoftWay,
-                penalty: 1e9,
-                ..Default::default()
-            })
-            .build()
+        let plane = ObstacleShape::Halfspace {
+            point: vec_d([0.0, -1.0, -1.0]),
+            normal: vec_d([0.0, 1.0, 1.0]),
+        };
+        block_and(Obstacle::new("plane", plane).with_motion(motion), 1e-3)
     };
     let not_increasing = vec![piece::<D>(0.5, [0.0; 3]), piece::<D>(0.5, [0.0; 3])];
     let err = build(not_increasing).err().expect("refused").to_string();
