@@ -5,8 +5,6 @@
 
 mod common;
 
-use std::path::PathBuf;
-
 use common::{block, vec_d};
 use softway::contact::{ContactMethod, ContactSettings, FrictionLaw, Obstacle, ObstacleShape};
 use softway::dim::{Dim, SpatialDim};
@@ -167,8 +165,10 @@ where
 /// The bundled ring drop (soft way, zeta = 1e10 Pa/m) through its landing (0.4 s) with
 /// `friction`: steps in contact, Newton iterations per contact step, the most in a step, the
 /// dissipated energy and the energy-account error relative to the energy reference.
+#[cfg(feature = "formats")]
 fn ring_drop(friction: &str) -> (usize, f64, usize, f64, f64) {
-    let path = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("fixtures/scenes/ring_drop.toml");
+    let path =
+        std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("fixtures/scenes/ring_drop.toml");
     let overrides = [
         format!("contact.friction={friction}"),
         "simulation.end_time=0.4".to_string(),
@@ -202,6 +202,8 @@ fn ring_drop(friction: &str) -> (usize, f64, usize, f64, f64) {
 /// The bundled ring drop with Coulomb 0.3 runs through its landing, dissipates, and friction
 /// keeps the energy account: its error is the frictionless run's (1.4 % of the reference
 /// here, the soft way's own drift with this penalty and step) within 1e-3.
+// The bundled scene is read through the scene format.
+#[cfg(feature = "formats")]
 #[test]
 fn ring_drop_with_coulomb_friction() {
     let (steps, per_step, most, dissipated, error) = ring_drop("{law=\"coulomb\",coefficient=0.3}");
