@@ -252,17 +252,34 @@ where
             } else if input.method.friction_return_map() && law.has_return_map() {
                 // The return map on the current normal force: the elastic slip is reset
                 // when the contact opens.
-                let limit = law.slip_limit(normal_force, area);
-                if normal_force > 0.0 {
+                // Coulomb's threshold: the current normal force, or the previous pass's.
+                let lagged = input.method.lagged_friction_threshold()
+                    && matches!(law, FrictionLaw::Coulomb { .. });
+                let closing_force = if lagged {
+                    input.friction_normals.get(&key).copied().unwrap_or(0.0)
+                } else {
+                    normal_force
+                };
+                let limit = law.slip_limit(closing_force, area);
+                // Closed: a positive force (an active point under implicit projection, whose
+                // force is exact only at convergence).
+                let closed = if lagged {
+                    normal_stiffness > 0.0
+                } else {
+                    normal_force > 0.0
+                };
+                if closed && closing_force > 0.0 {
                     let previous = input
                         .friction_anchors
                         .get(&key)
                         .copied()
                         .unwrap_or_else(SVector::zeros);
-                    let stiffness = self.model.contact.penalty * area;
+                    let stiffness = input
+                        .method
+                        .tangential_stiffness(&law_input, &self.model.contact);
                     let map = return_map(limit, stiffness, &previous, &r1, &normal, h);
                     anchor = Some(map.anchor);
-                    if matches!(law, FrictionLaw::Coulomb { .. }) {
+                    if !lagged && matches!(law, FrictionLaw::Coulomb { .. }) {
                         d_normal_force = map.d_limit * law.slip_limit(1.0, area);
                     }
                     (map.force, map.tangent)

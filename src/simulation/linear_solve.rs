@@ -159,16 +159,20 @@ where
         Ok(())
     }
 
-    /// `M/h + (alpha^2 h / 2) K` with prescribed rows and columns replaced by the identity
-    /// (scaled to the mean diagonal, for conditioning).
+    /// `M/h + alpha C + (alpha^2 h / 2) K` with prescribed rows and columns replaced by the
+    /// identity (scaled to the mean diagonal, for conditioning).
     fn iteration_matrix(&self, h: f64, d1: f64) -> SparseColMat<usize, f64> {
         let mut a = self.matrices.mass.clone();
         let (m_vals, k_vals) = (self.matrices.mass.val(), self.matrices.stiffness.val());
+        let alpha = self.model.settings.scheme.alpha;
         let col_ptr = a.symbolic().col_ptr().to_vec();
         let row_idx = a.symbolic().row_idx().to_vec();
         let vals = a.val_mut();
         for i in 0..vals.len() {
             vals[i] = m_vals[i] / h + d1 * h * k_vals[i];
+            if let Some(c) = &self.damping {
+                vals[i] += alpha * c[i];
+            }
         }
         let mut diag_sum = 0.0;
         for j in 0..col_ptr.len() - 1 {
@@ -318,7 +322,7 @@ where
             .collect()
     }
 
-    /// Solves `(M/h + K_t + K_c) x = b` directly, `K_t` the element kernel's tangent values
+    /// Solves `(M/h + alpha C + K_t + K_c) x = b` directly, `K_t` the element kernel's tangent values
     /// (the path of laws that are not linear: the matrix changes every iteration, so it is
     /// factored every iteration, with the symbolic analysis of the contact-free matrix).
     pub(super) fn solve_with_tangent(
@@ -335,12 +339,16 @@ where
             base.symbolic().row_idx().to_vec(),
         );
         let mass = self.matrices.mass.val();
+        let alpha = self.model.settings.scheme.alpha;
         let scale = self.system().diagonal.iter().sum::<f64>() / b.len().max(1) as f64;
         let vals = base.val_mut();
         for j in 0..col_ptr.len() - 1 {
             for k in col_ptr[j]..col_ptr[j + 1] {
                 let i = row_idx[k];
                 vals[k] += mass[k] / h;
+                if let Some(c) = &self.damping {
+                    vals[k] += alpha * c[k];
+                }
                 if self.prescribed[i].is_some() || self.prescribed[j].is_some() {
                     vals[k] = if i == j { scale } else { 0.0 };
                 }

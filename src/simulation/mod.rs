@@ -13,6 +13,7 @@ use nalgebra::SVector;
 use serde::{Deserialize, Serialize};
 
 mod contact_terms;
+mod damping;
 mod linear_solve;
 pub mod model;
 mod newton;
@@ -21,7 +22,7 @@ pub mod state;
 mod step;
 mod symmetric_matrix;
 
-pub use model::{Body, Constraint, MassKind, Model, Settings};
+pub use model::{Body, Constraint, MassKind, Model, RayleighDamping, Settings};
 pub use state::{ContactMemory, FactorRecord, MasterId, State};
 pub use symmetric_matrix::SymmetricMatrix;
 
@@ -108,6 +109,8 @@ where
     warnings: Vec<String>,
     boundary_faces: Vec<Vec<usize>>,
     nodal_mass: Vec<f64>,
+    /// Rayleigh damping `C` on the pattern of M and K (`None`: no body is damped).
+    damping: Option<Vec<f64>>,
     /// Whether internal forces and the tangent are assembled every Newton iteration (a law
     /// that is not linear; tests switch it on for linear ones to compare the two paths).
     general_path: bool,
@@ -313,6 +316,7 @@ where
             body.mesh.validate_topology(&body.name)?;
             body.mesh.check_quality(&body.name)?;
             body.material.validate()?;
+            damping::validate(&body.name, &body.damping)?;
             if body.initial_angular_velocity.len() != <Dim<D>>::ANGULAR {
                 return Err(invalid(
                     "initial_angular_velocity",
@@ -497,6 +501,8 @@ where
             contact_memory: ContactMemory::default(),
         };
         let general_path = integration.iter().any(|b| !b.law.is_linear());
+        let body_damping: Vec<_> = bodies.iter().map(|b| b.damping).collect();
+        let damping = damping::damping_values(&body_damping, &node_offsets, &matrices, D);
         let mut sim = Simulation {
             model,
             state,
@@ -511,6 +517,7 @@ where
             warnings,
             boundary_faces,
             nodal_mass,
+            damping,
             general_path,
             caches: Caches {
                 system: None,

@@ -75,6 +75,41 @@ pub struct Constraint {
     pub velocity: Vec<Option<f64>>,
 }
 
+/// Rayleigh damping of one body: `C = mass * M + stiffness * K` (K the small-strain stiffness
+/// of the body's law at rest). A damped mode of circular frequency omega loses amplitude at the
+/// rate `(mass + stiffness * omega^2) / 2`: mass-proportional damping acts on slow modes (and on
+/// rigid motion), stiffness-proportional damping on fast ones.
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
+pub struct RayleighDamping {
+    /// Mass-proportional coefficient [1/s].
+    pub mass: f64,
+    /// Stiffness-proportional coefficient [s].
+    pub stiffness: f64,
+}
+
+impl RayleighDamping {
+    /// No damping.
+    pub const NONE: RayleighDamping = RayleighDamping {
+        mass: 0.0,
+        stiffness: 0.0,
+    };
+
+    /// The coefficients that give the damping ratio `ratio` at the two circular frequencies
+    /// `omega_1` and `omega_2` [rad/s] (the usual way to choose them).
+    pub fn from_ratio(ratio: f64, omega_1: f64, omega_2: f64) -> Self {
+        let mass = 2.0 * ratio * omega_1 * omega_2 / (omega_1 + omega_2);
+        RayleighDamping {
+            mass,
+            stiffness: 2.0 * ratio / (omega_1 + omega_2),
+        }
+    }
+
+    /// Whether both coefficients are zero.
+    pub fn is_none(&self) -> bool {
+        self.mass == 0.0 && self.stiffness == 0.0
+    }
+}
+
 /// A deformable body: mesh, law, initial motion and constraints.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Body<const D: usize> {
@@ -90,6 +125,9 @@ pub struct Body<const D: usize> {
     pub initial_angular_velocity: Vec<f64>,
     /// Prescribed velocity components.
     pub constraints: Vec<Constraint>,
+    /// Rayleigh damping (none by default).
+    #[serde(default)]
+    pub damping: RayleighDamping,
 }
 
 impl<const D: usize> Body<D>
@@ -105,7 +143,14 @@ where
             initial_velocity: SVector::zeros(),
             initial_angular_velocity: vec![0.0; <Dim<D>>::ANGULAR],
             constraints: Vec::new(),
+            damping: RayleighDamping::NONE,
         }
+    }
+
+    /// Sets Rayleigh damping `C = mass * M + stiffness * K` (mass [1/s], stiffness [s]).
+    pub fn with_damping(mut self, mass: f64, stiffness: f64) -> Self {
+        self.damping = RayleighDamping { mass, stiffness };
+        self
     }
 
     /// Sets the initial velocity [m/s].

@@ -282,7 +282,7 @@ where
             assembly::symmetric_mul_add(&self.matrices.mass, &v1, 1.0 / h, &mut momentum1);
             // Linear laws: K u_alpha with the K assembled once; other laws: the element
             // kernel's forces and tangent at this iterate.
-            let internal = if general {
+            let mut internal = if general {
                 let alpha = self.model.settings.scheme.alpha;
                 let v_alpha: Vec<f64> = (0..ndof)
                     .map(|i| (1.0 - alpha) * v0[i] + alpha * v1[i])
@@ -310,6 +310,14 @@ where
                 assembly::symmetric_mul_add(&self.matrices.stiffness, &u_alpha, 1.0, &mut internal);
                 internal
             };
+            if self.damping.is_some() {
+                // Rayleigh damping at the collocation instant, with the internal forces.
+                let alpha = self.model.settings.scheme.alpha;
+                let v_alpha: Vec<f64> = (0..ndof)
+                    .map(|i| (1.0 - alpha) * v0[i] + alpha * v1[i])
+                    .collect();
+                self.add_damping_force(&v_alpha, 1.0, &mut internal);
+            }
             let mut free_norm2 = 0.0;
             let mut scale2 = [0.0f64; 5];
             for i in 0..ndof {
@@ -365,12 +373,19 @@ where
                 for m in messages {
                     recorder.log(self, &format!("step {step}: {m}"));
                 }
+                if method.lagged_friction_threshold() {
+                    // A released point carries no threshold into its next activation.
+                    friction_normals.retain(|k, _| vars.active.contains(k));
+                }
                 let mut done = match outcome {
                     OuterUpdate::Converged => true,
                     OuterUpdate::Again => false,
                     OuterUpdate::Cycle => return Err(not_converged(iterations, rel)),
                 };
-                if done && frictional && !method.friction_return_map() {
+                if done
+                    && frictional
+                    && (!method.friction_return_map() || method.lagged_friction_threshold())
+                {
                     // The smooth law's threshold follows the normal force until it settles
                     // (the return map reads the current normal force instead).
                     let samples: Vec<ThresholdSample<ContactKey>> = terms
@@ -385,6 +400,9 @@ where
                     if let Some(next) = threshold_change(&samples, &friction_normals) {
                         done = false;
                         friction_normals = next;
+                        // A new threshold is a new problem: an active set seen under the old
+                        // one is not a cycle.
+                        vars.seen_sets.clear();
                     }
                 }
                 if done {

@@ -200,6 +200,20 @@ where
         let mut u1: Vec<f64> = (0..ndof)
             .map(|i| u0[i] + h * (b0 * v0[i] + b1 * v1[i]))
             .collect();
+        // The damping force's work along the eq 22 displacement h (v0 + v1) / 2: with the
+        // force at v_alpha, exactly the kinetic energy it removes from a rigid motion.
+        let mut damping_loss = 0.0;
+        if self.damping.is_some() {
+            let alpha = self.model.settings.scheme.alpha;
+            let v_alpha: Vec<f64> = (0..ndof)
+                .map(|i| (1.0 - alpha) * v0[i] + alpha * v1[i])
+                .collect();
+            let mut force = vec![0.0; ndof];
+            self.add_damping_force(&v_alpha, 1.0, &mut force);
+            damping_loss = (0..ndof)
+                .map(|i| force[i] * 0.5 * h * (v0[i] + v1[i]))
+                .sum();
+        }
         let mut contact_forces = vec![vec![0.0; D]; self.model.obstacles.len()];
         for p in &terms.pairs {
             if let Some(k) = p.obstacle {
@@ -302,7 +316,7 @@ where
         state.displacement = u1;
         state.velocity = v1;
         state.external_work += work;
-        state.dissipated_energy += h * terms.dissipation_rate + projection_loss;
+        state.dissipated_energy += h * terms.dissipation_rate + projection_loss + damping_loss;
         state.obstacle_translations = start.translations_t1.clone();
         state.material_history.clone_from(material_history);
         state.contact_energy = terms.energy;

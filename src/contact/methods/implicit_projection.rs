@@ -17,6 +17,9 @@ pub(crate) struct ImplicitProjection;
 /// The velocity penalty that holds an active point, relative to its largest diagonal entry.
 const VELOCITY_PENALTY: f64 = 1e4;
 
+/// The return map's tangential stiffness times the step, relative to the largest diagonal.
+const TANGENTIAL_PENALTY: f64 = 1e2;
+
 impl Method for ImplicitProjection {
     fn start(&self, vars: &mut OuterVariables, penetrating: &[ContactKey]) {
         // Points predicted to penetrate with v1 = v0 start active: this also catches points
@@ -89,6 +92,24 @@ impl Method for ImplicitProjection {
             }
         }
         OuterUpdate::Again
+    }
+
+    // Coulomb and Tresca as the return map: the normal force of an active point is a
+    // multiplier of a velocity constraint, exact only at convergence, so Coulomb's threshold
+    // takes the previous pass's (the fixed point that the smooth law used).
+    fn friction_return_map(&self) -> bool {
+        true
+    }
+
+    fn lagged_friction_threshold(&self) -> bool {
+        true
+    }
+
+    /// No penalty here: a stiffness of `TANGENTIAL_PENALTY` times the slave's diagonal per
+    /// step, so that a sticking point's elastic slip is `F_t h / (100 diagonal)`, about
+    /// `F_t h^2 / (100 m)`, and the iteration matrix's rows grow a hundredfold at most.
+    fn tangential_stiffness(&self, input: &NormalInput, _settings: &ContactSettings) -> f64 {
+        TANGENTIAL_PENALTY * input.diagonal / input.time_step
     }
 
     fn end_projection(&self) -> EndProjection {

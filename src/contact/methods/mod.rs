@@ -194,6 +194,18 @@ pub(crate) trait Method: Sync {
     fn friction_return_map(&self) -> bool {
         false
     }
+
+    /// The return map's tangential stiffness [N/m] for a pair (default: the normal penalty
+    /// times the contact area, so that the elastic slip is at most mu times the penetration).
+    fn tangential_stiffness(&self, input: &NormalInput, settings: &ContactSettings) -> f64 {
+        settings.penalty * input.area
+    }
+
+    /// Whether Coulomb's threshold takes the normal force of the previous pass (a fixed point
+    /// across passes) rather than the current iterate's.
+    fn lagged_friction_threshold(&self) -> bool {
+        false
+    }
 }
 
 /// The implementation of a method.

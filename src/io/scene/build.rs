@@ -232,6 +232,11 @@ impl LoadedScene {
             let k = format!("{key}.initial_angular_velocity");
             body.initial_angular_velocity = self.angular::<D>(&k, w)?;
         }
+        if let Some(d) = &spec.damping {
+            body.damping.mass = self.non_negative(&format!("{key}.damping.mass"), d.mass, "1/s")?;
+            body.damping.stiffness =
+                self.non_negative(&format!("{key}.damping.stiffness"), d.stiffness, "s")?;
+        }
         for (c, cs) in spec.constraints.iter().enumerate() {
             let ck = format!("{key}.constraints.{c}");
             body.constraints
@@ -540,6 +545,14 @@ impl LoadedScene {
             ));
         }
         Ok(())
+    }
+
+    pub(super) fn non_negative(&self, key: &str, v: f64, unit: &str) -> Result<f64> {
+        if v >= 0.0 && v.is_finite() {
+            Ok(v)
+        } else {
+            Err(self.error(key, v, format!("a finite value >= 0 [{unit}]")))
+        }
     }
 
     pub(super) fn positive(&self, key: &str, v: f64, unit: &str) -> Result<f64> {

@@ -306,6 +306,21 @@ pub struct BodySection {
     /// Prescribed velocities.
     #[serde(default)]
     pub constraints: Vec<ConstraintSection>,
+    /// Rayleigh damping.
+    #[serde(default)]
+    pub damping: Option<DampingSpec>,
+}
+
+/// `damping = { mass, stiffness }`: Rayleigh damping `C = mass M + stiffness K`.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct DampingSpec {
+    /// [1/s].
+    #[serde(default)]
+    pub mass: f64,
+    /// [s].
+    #[serde(default)]
+    pub stiffness: f64,
 }
 
 /// `shape = { type = ..., ... }`.
