@@ -32,7 +32,7 @@ pub struct State {
     /// Energy stored in soft-way penalties at the end of the last step [J].
     pub contact_energy: f64,
     /// Augmented Lagrangian multipliers carried from step to step: (slave node, master,
-    /// contact pressure [Pa]).
+    /// contact pressure [Pa]), for the pairs closed at the end of the last step only.
     pub multipliers: Vec<(usize, MasterId, f64)>,
     /// The normal forces that set the friction thresholds (slave node, master, force [N]),
     /// carried from step to step as the start of the fixed point on the threshold.
