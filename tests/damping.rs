@@ -57,7 +57,10 @@ where
         );
         assert!(v[1..].iter().all(|c| c.abs() < 1e-12));
     }
-    assert!((discrete - exact).abs() < 2e-3 * exact, "{discrete} vs {exact}");
+    assert!(
+        (discrete - exact).abs() < 2e-3 * exact,
+        "{discrete} vs {exact}"
+    );
     let e = sim.energies();
     assert!(e.dissipated > 0.0);
     assert!(energy_error(&sim) < 1e-9, "{}", energy_error(&sim));
@@ -84,7 +87,10 @@ where
             "{D}D a = {a}, b = {b}: decay {rate:.5} /s against {expected:.5}, period {period:.6} \
              s against {expected_period:.6} (zeta {zeta:.4}, omega {omega:.3} rad/s)"
         );
-        assert!((rate - expected).abs() < 5e-3 * expected, "{rate} vs {expected}");
+        assert!(
+            (rate - expected).abs() < 5e-3 * expected,
+            "{rate} vs {expected}"
+        );
         assert!((period - expected_period).abs() < 1e-3 * expected_period);
     }
 }

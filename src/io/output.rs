@@ -433,6 +433,15 @@ where
     summary.energy_drift =
         ((e.total() - summary.initial_energy - e.external_work + e.dissipated).abs() / reference)
             .min(f64::MAX);
+    // Booked energy growth closes the account, so energy_drift cannot show it: say it here.
+    if e.dissipated < -1e-9 * reference {
+        summary.warnings.push(format!(
+            "the run created {:.4} J: dissipated_energy is negative, and energy_drift does not \
+             count what the account books (explicit_projection's end-of-step correction can put \
+             energy in)",
+            -e.dissipated
+        ));
+    }
     if let Some(err) = &error {
         summary.status = "failed".into();
         summary.error = Some(err.to_string());

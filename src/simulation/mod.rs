@@ -486,6 +486,7 @@ where
             step: 0,
             time: 0.0,
             displacement: vec![0.0; ndof],
+            gap_displacement: vec![0.0; ndof],
             velocity,
             external_work: 0.0,
             dissipated_energy: 0.0,
@@ -564,6 +565,17 @@ where
                     &format!("{expected} values (the model's)"),
                 ));
             }
+        }
+        let mut state = state;
+        if state.gap_displacement.is_empty() {
+            // A state from before the gap displacement existed: the configuration's.
+            state.gap_displacement = state.displacement.clone();
+        } else if state.gap_displacement.len() != ndof {
+            return Err(invalid(
+                "state.gap_displacement",
+                format!("{} values", state.gap_displacement.len()),
+                &format!("{ndof} values (the model's) or none"),
+            ));
         }
         self.state = state;
         Ok(())
@@ -760,37 +772,51 @@ where
         let s = &self.state;
         Energies {
             kinetic: 0.5 * assembly::symmetric_dot(&self.matrices.mass, &s.velocity, &s.velocity),
-            internal: if self.general_path {
-                self.integrate_at(&s.displacement).energy
-            } else {
-                0.5 * self.strain_energy_product(&s.displacement)
-            },
+            internal: self.internal_energy(&s.displacement, &s.material_history),
             contact: s.contact_energy,
             external_work: s.external_work,
             dissipated: s.dissipated_energy,
         }
     }
 
-    /// `u^T K u`, with each body's mean displacement removed first: `K` annihilates
-    /// translations, and removing them avoids the cancellation of large equal terms.
-    fn strain_energy_product(&self, u: &[f64]) -> f64 {
-        let mut w = u.to_vec();
-        for b in 0..self.model.bodies.len() {
-            let range = self.body_nodes(BodyId(b));
-            let count = range.len().max(1) as f64;
-            for k in 0..D {
-                let mean = range.clone().map(|n| u[n * D + k]).sum::<f64>() / count;
-                for n in range.clone() {
-                    w[n * D + k] -= mean;
-                }
-            }
+    /// The stored internal energy at displacements `u` with the material history `history`
+    /// [J]: what [`Self::energies`] reports, so that other accounts (the end-of-step
+    /// projection's) use the same matrices.
+    pub(super) fn internal_energy(&self, u: &[f64], history: &[f64]) -> f64 {
+        if self.general_path {
+            self.integrate_at(u, history).energy
+        } else {
+            0.5 * self.stiffness_product(u, u)
         }
-        assembly::symmetric_dot(&self.matrices.stiffness, &w, &w)
     }
 
-    /// The energy that stability is measured against: E(0) + |external work| + dissipated.
+    /// `a^T K b`, with each body's mean removed from both first: `K` annihilates
+    /// translations, and removing them avoids the cancellation of large equal terms.
+    pub(super) fn stiffness_product(&self, a: &[f64], b: &[f64]) -> f64 {
+        let centred = |u: &[f64]| {
+            let mut w = u.to_vec();
+            for body in 0..self.model.bodies.len() {
+                let range = self.body_nodes(BodyId(body));
+                let count = range.len().max(1) as f64;
+                for k in 0..D {
+                    let mean = range.clone().map(|n| u[n * D + k]).sum::<f64>() / count;
+                    for n in range.clone() {
+                        w[n * D + k] -= mean;
+                    }
+                }
+            }
+            w
+        };
+        assembly::symmetric_dot(&self.matrices.stiffness, &centred(a), &centred(b))
+    }
+
+    /// The energy that stability is measured against: E(0) + |external work| + |dissipated|
+    /// (the dissipation is negative where the end-of-step projection created energy: that
+    /// energy is booked, so it counts like work).
     pub fn energy_reference(&self) -> f64 {
-        self.state.reference_energy + self.state.external_work.abs() + self.state.dissipated_energy
+        self.state.reference_energy
+            + self.state.external_work.abs()
+            + self.state.dissipated_energy.abs()
     }
 
     /// Energy at t = 0 [J].
@@ -812,11 +838,11 @@ where
     /// Internal forces of displacements `u` (flat, D per node) integrated from the element
     /// stresses [N].
     pub fn internal_forces(&self, u: &[f64]) -> Vec<f64> {
-        self.integrate_at(u).forces
+        self.integrate_at(u, &self.state.material_history).forces
     }
 
-    /// The element integrals at displacements `u` (zero strain rate) with the state's history.
-    fn integrate_at(&self, u: &[f64]) -> assembly::Integrated {
+    /// The element integrals at displacements `u` (zero strain rate) with `history`.
+    fn integrate_at(&self, u: &[f64], history: &[f64]) -> assembly::Integrated {
         let fields = assembly::KernelFields {
             displacement: Some(u),
             ..Default::default()
@@ -827,7 +853,7 @@ where
             &self.reference,
             &self.integration,
             &fields,
-            &self.state.material_history,
+            history,
             u.len(),
         )
     }

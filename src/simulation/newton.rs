@@ -45,9 +45,11 @@ pub(super) struct StepStart<const D: usize> {
     pub u0: Vec<f64>,
     /// Velocities at t0 [m/s].
     pub v0: Vec<f64>,
+    /// The displacement gaps are measured on at t0 [m] (see `GapDisplacement`).
+    pub gap_u0: Vec<f64>,
     /// External forces at t_alpha [N].
     pub f_ext: Vec<f64>,
-    /// Positions at t0 [m].
+    /// Positions at t0 that gaps are measured on [m].
     pub x0: Vec<SVector<f64, D>>,
     /// The obstacles at t0 and t1.
     pub obstacles_t0: Vec<Obstacle<D>>,
@@ -230,7 +232,7 @@ where
         let mut tangent_values: Vec<f64> = Vec::new();
         let mut material_history = self.state.material_history.clone();
         loop {
-            let x_gap = end_positions(&self.reference, u0, v0, &v1, h);
+            let x_gap = end_positions(&self.reference, &start.gap_u0, v0, &v1, h);
             if contact_in_newton {
                 let detector = self.caches.detector.as_mut().expect("contact_in_newton");
                 detector.update_candidates(&start.x0, &x_gap, &start.obstacles_t0, &t1_vectors);
@@ -492,7 +494,7 @@ where
                     relative_residual: rel,
                     increment_norm: inc2.sqrt(),
                     end_velocity: &v1,
-                    end_positions: &end_positions(&self.reference, u0, v0, &v1, h),
+                    end_positions: &end_positions(&self.reference, &start.gap_u0, v0, &v1, h),
                     candidates,
                     contacts: &records,
                 },

@@ -19,6 +19,12 @@ pub struct State {
     pub displacement: Vec<f64>,
     /// Nodal velocities [m/s].
     pub velocity: Vec<f64>,
+    /// The displacement contact gaps are measured on [m] (with
+    /// [`crate::contact::GapDisplacement::Trapezoid`]): the running sum of eq 22,
+    /// `h (v0 + v1) / 2` per step, moved with the configuration by end-of-step projections.
+    /// It differs from `displacement` by the scheme's `h (beta - 1/2) (v - v(0))` per node.
+    #[serde(default)]
+    pub gap_displacement: Vec<f64>,
     /// Cumulative external work [J].
     pub external_work: f64,
     /// Cumulative dissipation [J].
@@ -32,7 +38,7 @@ pub struct State {
     /// Energy stored in soft-way penalties at the end of the last step [J].
     pub contact_energy: f64,
     /// Augmented Lagrangian multipliers carried from step to step: (slave node, master,
-    /// contact pressure [Pa]).
+    /// contact pressure [Pa]), for the pairs closed at the end of the last step only.
     pub multipliers: Vec<(usize, MasterId, f64)>,
     /// The normal forces that set the friction thresholds (slave node, master, force [N]),
     /// carried from step to step as the start of the fixed point on the threshold.

@@ -708,6 +708,47 @@ fn every_bundled_scene_passes_check() {
     );
 }
 
+/// Energy that the account books as created (negative dissipation, explicit projection on the
+/// bundled ring drop) closes the account, so energy_drift stays small: the summary says so in
+/// a warning.
+#[test]
+fn booked_energy_growth_is_a_warning_in_the_summary() {
+    let dir = tempdir();
+    let out = dir.path().join("out");
+    let scene = repo().join("fixtures/scenes/ring_drop.toml");
+    let o = run_in(
+        dir.path(),
+        &[
+            "run",
+            scene.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+            "--set",
+            "contact.method=\"explicit_projection\"",
+            "--set",
+            "simulation.end_time=0.4",
+            "--set",
+            "output.vtk_interval=0",
+            "--quiet",
+        ],
+    );
+    assert_success(&o);
+    let s = summary(&out);
+    let dissipated = s["dissipated_energy"].as_f64().unwrap();
+    assert!(dissipated < 0.0, "dissipated {dissipated}");
+    assert!(s["energy_drift"].as_f64().unwrap() < 0.05, "{s}");
+    let warnings: Vec<&str> = s["warnings"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|w| w.as_str().unwrap())
+        .collect();
+    assert!(
+        warnings.iter().any(|w| w.contains("the run created")),
+        "{warnings:?}"
+    );
+}
+
 // ---------------------------------------------------------------------------------------------
 // --rerun (feature `rerun`): the recording is written next to the outputs; a file that cannot
 // be created is invalid input (nothing run, nothing written).

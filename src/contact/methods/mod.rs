@@ -26,8 +26,9 @@ pub(crate) mod soft_way;
 /// The variables a method updates between Newton solves within one step.
 #[derive(Debug, Clone, Default)]
 pub(crate) struct OuterVariables {
-    /// Augmented Lagrangian: contact pressures [Pa] (carried from step to step); implicit
-    /// projection: the normal forces [N] of the last solve on active points.
+    /// Augmented Lagrangian: contact pressures [Pa], positive, of closed pairs only (carried
+    /// from step to step, dropped when the pair opens); implicit projection: the normal
+    /// forces [N] of the last solve on active points.
     pub multipliers: BTreeMap<ContactKey, f64>,
     /// Implicit projection: the active set.
     pub active: BTreeSet<ContactKey>,
