@@ -179,6 +179,12 @@ where
             sim.body_mass(softway::simulation::BodyId(b)),
             body.constraints.len()
         );
+        if !body.damping.is_none() {
+            println!(
+                "    Rayleigh damping: mass {:e} 1/s, stiffness {:e} s",
+                body.damping.mass, body.damping.stiffness
+            );
+        }
     }
     for o in &scene.obstacles {
         println!("  obstacle `{}`", o.name);

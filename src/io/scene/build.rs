@@ -11,7 +11,7 @@ use super::schema::{
 };
 use super::{LoadedScene, OutputOptions, Probe, Scene};
 use crate::contact::resolution::DEFAULT_REGULARIZATION;
-use crate::contact::{ContactMethod, ContactSettings, FrictionLaw};
+use crate::contact::{ContactMethod, ContactSettings, FrictionLaw, GapDisplacement};
 use crate::dim::{Dim, Kinematics, SpatialDim};
 use crate::error::{Error, Result};
 use crate::material::{LinearElastic, Material};
@@ -315,12 +315,24 @@ impl LoadedScene {
                  implicit_projection or augmented_lagrangian), or law = \"frictionless\"",
             ));
         }
+        let gap_displacement = match c.gap_displacement.as_deref() {
+            None | Some("configuration") => GapDisplacement::Configuration,
+            Some("trapezoid") => GapDisplacement::Trapezoid,
+            Some(other) => {
+                return Err(self.error(
+                    "contact.gap_displacement",
+                    format!("\"{other}\""),
+                    "\"configuration\" or \"trapezoid\"",
+                ))
+            }
+        };
         Ok(ContactSettings {
             method,
             penalty: c.penalty.unwrap_or(0.0),
             self_contact: c.self_contact,
             gap_tolerance: c.gap_tolerance,
             friction,
+            gap_displacement,
             ..ContactSettings::default()
         })
     }

@@ -148,6 +148,9 @@ pub struct ContactSection {
     /// Default friction law.
     #[serde(default)]
     pub friction: FrictionSpec,
+    /// "configuration" | "trapezoid".
+    #[serde(default)]
+    pub gap_displacement: Option<String>,
 }
 
 fn default_method() -> String {
@@ -162,6 +165,7 @@ impl Default for ContactSection {
             self_contact: false,
             gap_tolerance: default_gap_tolerance(),
             friction: FrictionSpec::Frictionless,
+            gap_displacement: None,
         }
     }
 }
