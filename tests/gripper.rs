@@ -162,11 +162,16 @@ mod d3 {
 fn bundled_gripper_scene_lifts_the_block() {
     let path =
         std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("fixtures/scenes/gripper.toml");
-    let scene = softway::io::scene::load(&path, &[]).unwrap().build::<2>().unwrap();
+    let scene = softway::io::scene::load(&path, &[])
+        .unwrap()
+        .build::<2>()
+        .unwrap();
     let mut sim = scene.simulation().unwrap();
     let mut at_hold = 0.0;
     while sim.state().time < scene.end_time - 1e-9 {
-        let r = sim.step().unwrap_or_else(|e| panic!("t = {}: {e}", sim.state().time));
+        let r = sim
+            .step()
+            .unwrap_or_else(|e| panic!("t = {}: {e}", sim.state().time));
         if (r.time - HOLD).abs() < 5e-4 {
             at_hold = mean_lift::<2>(&sim.state().displacement);
         }
