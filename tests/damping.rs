@@ -4,7 +4,7 @@
 
 mod common;
 
-use common::{block, vec_d};
+use common::{block, energy_error, vec_d};
 use softway::dim::{Dim, SpatialDim};
 use softway::prelude::*;
 
@@ -12,15 +12,6 @@ both_dims!(
     mass_damping_decays_a_free_body_exponentially,
     an_oscillator_decays_at_the_rayleigh_rate
 );
-
-fn energy_error<const D: usize>(sim: &Simulation<D>) -> f64
-where
-    Dim<D>: SpatialDim<D>,
-{
-    let e = sim.energies();
-    (e.total() - sim.initial_energy() - e.external_work + e.dissipated).abs()
-        / sim.energy_reference()
-}
 
 /// A free block moving at 1 m/s with mass-proportional damping a = 5 /s: every node's
 /// velocity follows the scheme's factor (1 - a h (1 - alpha)) / (1 + a h alpha) per step

@@ -6,7 +6,7 @@
 
 mod common;
 
-use common::{block, vec_d};
+use common::{block, energy_error, vec_d};
 use softway::contact::{ContactMethod, ContactSettings, FrictionLaw, Obstacle, ObstacleShape};
 use softway::dim::{Dim, SpatialDim};
 use softway::prelude::*;
@@ -14,63 +14,42 @@ use softway::simulation::RayleighDamping;
 
 const G: f64 = 9.81;
 
-/// Slip under every method that takes friction, 2D and 3D.
-mod slide {
-    use super::*;
-    #[test]
-    fn d2_soft_way() {
-        block_on_a_slope_slides::<2>(ContactMethod::SoftWay);
-    }
-    #[test]
-    fn d3_soft_way() {
-        block_on_a_slope_slides::<3>(ContactMethod::SoftWay);
-    }
-    #[test]
-    fn d2_augmented_lagrangian() {
-        block_on_a_slope_slides::<2>(ContactMethod::AugmentedLagrangian);
-    }
-    #[test]
-    fn d3_augmented_lagrangian() {
-        block_on_a_slope_slides::<3>(ContactMethod::AugmentedLagrangian);
-    }
-    #[test]
-    fn d2_implicit_projection() {
-        block_on_a_slope_slides::<2>(ContactMethod::ImplicitProjection);
-    }
-    #[test]
-    fn d3_implicit_projection() {
-        block_on_a_slope_slides::<3>(ContactMethod::ImplicitProjection);
-    }
+/// `per_method!(module, test_fn)`: `module::{d2,d3}_{soft_way, augmented_lagrangian,
+/// implicit_projection}`, every method that carries friction in both dimensions.
+macro_rules! per_method {
+    ($module:ident, $test:ident) => {
+        mod $module {
+            use super::*;
+            #[test]
+            fn d2_soft_way() {
+                $test::<2>(ContactMethod::SoftWay);
+            }
+            #[test]
+            fn d3_soft_way() {
+                $test::<3>(ContactMethod::SoftWay);
+            }
+            #[test]
+            fn d2_augmented_lagrangian() {
+                $test::<2>(ContactMethod::AugmentedLagrangian);
+            }
+            #[test]
+            fn d3_augmented_lagrangian() {
+                $test::<3>(ContactMethod::AugmentedLagrangian);
+            }
+            #[test]
+            fn d2_implicit_projection() {
+                $test::<2>(ContactMethod::ImplicitProjection);
+            }
+            #[test]
+            fn d3_implicit_projection() {
+                $test::<3>(ContactMethod::ImplicitProjection);
+            }
+        }
+    };
 }
 
-/// Stick under every method that takes friction, 2D and 3D.
-mod stick {
-    use super::*;
-    #[test]
-    fn d2_soft_way() {
-        block_on_a_slope_sticks::<2>(ContactMethod::SoftWay);
-    }
-    #[test]
-    fn d3_soft_way() {
-        block_on_a_slope_sticks::<3>(ContactMethod::SoftWay);
-    }
-    #[test]
-    fn d2_augmented_lagrangian() {
-        block_on_a_slope_sticks::<2>(ContactMethod::AugmentedLagrangian);
-    }
-    #[test]
-    fn d3_augmented_lagrangian() {
-        block_on_a_slope_sticks::<3>(ContactMethod::AugmentedLagrangian);
-    }
-    #[test]
-    fn d2_implicit_projection() {
-        block_on_a_slope_sticks::<2>(ContactMethod::ImplicitProjection);
-    }
-    #[test]
-    fn d3_implicit_projection() {
-        block_on_a_slope_sticks::<3>(ContactMethod::ImplicitProjection);
-    }
-}
+per_method!(slide, block_on_a_slope_slides);
+per_method!(stick, block_on_a_slope_sticks);
 
 /// A 0.2 x 0.1 (x 0.1) m block resting on the plane y = 0 (z = 0 in 3D) under gravity tilted by
 /// 30 degrees (down the slope along +x), E = 1e7 Pa, zeta = 1e10 Pa/m (a penetration of about
@@ -159,15 +138,6 @@ where
         most = most.max(r.iterations);
     }
     most
-}
-
-fn energy_error<const D: usize>(sim: &Simulation<D>) -> f64
-where
-    Dim<D>: SpatialDim<D>,
-{
-    let e = sim.energies();
-    (e.total() - sim.initial_energy() - e.external_work + e.dissipated).abs()
-        / sim.energy_reference()
 }
 
 /// The block with mu = 0.7 > tan 30 and a material damping of 5 %, default scheme: between

@@ -64,6 +64,16 @@ pub fn block<const D: usize>(size: [f64; 3], cells: [usize; 3], simplex: bool) -
     }
 }
 
+/// The energy account's error `|E - E(0) - W + D|` relative to the energy reference.
+pub fn energy_error<const D: usize>(sim: &softway::Simulation<D>) -> f64
+where
+    softway::dim::Dim<D>: softway::dim::SpatialDim<D>,
+{
+    let e = sim.energies();
+    (e.total() - sim.initial_energy() - e.external_work + e.dissipated).abs()
+        / sim.energy_reference()
+}
+
 /// A vector with the first D entries of `v`.
 pub fn vec_d<const D: usize>(v: [f64; 3]) -> SVector<f64, D> {
     SVector::from_fn(|i, _| v[i])
