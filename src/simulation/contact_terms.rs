@@ -220,7 +220,11 @@ where
                 }
                 r
             };
-            let area = Self::contact_area(&input.areas[s], &normal);
+            let mut area = Self::contact_area(&input.areas[s], &normal);
+            if obstacle.is_none() && input.method.symmetric_pairs() {
+                // Both passes act on a pair of deformable surfaces: half each.
+                area *= 0.5;
+            }
             let (r0, r1) = (relative(input.v0), relative(input.v1));
             let projector = SMatrix::<f64, D, D>::identity() - normal * normal.transpose();
             let slip = projector * (r0 + r1) * 0.5;

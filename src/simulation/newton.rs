@@ -238,18 +238,22 @@ where
                 detector.update_candidates(&start.x0, &x_gap, &start.obstacles_t0, &t1_vectors);
                 candidates = detector.candidates().len();
                 let mut pairs = detector.pairs(&x_gap, &start.obstacles_t1);
-                // One pass between two bodies: the nodes of the body listed first are slaves
-                // against the facets of the other (no duplicated constraints). Self-contact
-                // keeps both sides of a fold.
-                let facet_body = detector.surface().facet_body();
-                let offsets = &self.node_offsets;
-                pairs.retain(|p| match p.master {
-                    Master::Facet(f) => {
-                        let slave_body = offsets.partition_point(|&o| o <= p.slave) - 1;
-                        facet_body[f] >= slave_body
-                    }
-                    Master::Obstacle(_) => true,
-                });
+                // Between two bodies, the penalty methods keep both passes (each body's nodes
+                // against the other's facets, at half the contact area each: the same total
+                // stiffness on matching faces, and no corner of either body left unchecked);
+                // the projections keep one pass (the nodes of the body listed first are slaves)
+                // so that no constraint is duplicated. Self-contact keeps both sides of a fold.
+                if !method.symmetric_pairs() {
+                    let facet_body = detector.surface().facet_body();
+                    let offsets = &self.node_offsets;
+                    pairs.retain(|p| match p.master {
+                        Master::Facet(f) => {
+                            let slave_body = offsets.partition_point(|&o| o <= p.slave) - 1;
+                            facet_body[f] >= slave_body
+                        }
+                        Master::Obstacle(_) => true,
+                    });
+                }
                 if !vars.started {
                     let penetrating: Vec<ContactKey> = pairs
                         .iter()

@@ -13,6 +13,10 @@ use crate::contact::{ContactKey, ContactSettings};
 pub(crate) struct AugmentedLagrangian;
 
 impl Method for AugmentedLagrangian {
+    fn symmetric_pairs(&self) -> bool {
+        true
+    }
+
     fn normal_law(
         &self,
         input: &NormalInput,

@@ -202,6 +202,12 @@ pub(crate) trait Method: Sync {
         settings.penalty * input.area
     }
 
+    /// Whether pairs between deformable surfaces are kept in both directions (each at half
+    /// the contact area) rather than one pass.
+    fn symmetric_pairs(&self) -> bool {
+        false
+    }
+
     /// Whether Coulomb's threshold takes the normal force of the previous pass (a fixed point
     /// across passes) rather than the current iterate's.
     fn lagged_friction_threshold(&self) -> bool {

@@ -24,6 +24,10 @@ pub(crate) fn penalty_law(lambda: f64, input: &NormalInput, zeta: f64) -> Normal
 }
 
 impl Method for SoftWay {
+    fn symmetric_pairs(&self) -> bool {
+        true
+    }
+
     fn normal_law(
         &self,
         input: &NormalInput,

@@ -1,0 +1,94 @@
+//! Contact between deformable bodies: three soft blocks (E = 1e5 Pa) dropped in a stack on a
+//! floor, each offset sideways by 1 cm from the one below, in 2D and 3D. The soft way keeps
+//! both passes between bodies at half the area each; it runs through the landing and the
+//! settling with its energy account within 2 %.
+
+mod common;
+
+use common::{block, energy_error, vec_d};
+use softway::contact::{ContactMethod, ContactSettings, Obstacle, ObstacleShape};
+use softway::dim::{Dim, SpatialDim};
+use softway::prelude::*;
+
+/// The largest penetration over the run and the energy error at its end.
+fn stack<const D: usize>(method: ContactMethod) -> (f64, f64)
+where
+    Dim<D>: SpatialDim<D>,
+{
+    let mut up = [0.0; 3];
+    up[D - 1] = 1.0;
+    let mut gravity = [0.0; 3];
+    gravity[D - 1] = -9.81;
+    let mut builder = Simulation::<D>::builder()
+        .time_step(1e-3)
+        .gravity(vec_d(gravity));
+    for k in 0..3 {
+        let mut mesh: Mesh<D> = block([0.1, 0.1, 0.1], [4, 4, 4], false);
+        // 1 mm above the floor, 2 mm between blocks, each 1 cm to the side of the one below.
+        let mut shift = [0.01 * k as f64, 0.0, 0.0];
+        shift[D - 1] = 0.102 * k as f64 + 0.001;
+        for x in &mut mesh.nodes {
+            *x += vec_d::<D>(shift);
+        }
+        builder = builder.body(Body::new(
+            format!("block{k}"),
+            mesh,
+            Material::LinearElastic(LinearElastic::new(1e5, 0.3, 1000.0).unwrap()),
+        ));
+    }
+    let mut sim = builder
+        .obstacle(Obstacle::new(
+            "floor",
+            ObstacleShape::Halfspace {
+                point: vec_d([0.0; 3]),
+                normal: vec_d(up),
+            },
+        ))
+        .contact(ContactSettings {
+            method,
+            penalty: 1e9,
+            ..ContactSettings::default()
+        })
+        .build()
+        .unwrap();
+    let mut penetration: f64 = 0.0;
+    while sim.state().time < 0.5 - 1e-9 {
+        let r = sim
+            .step()
+            .unwrap_or_else(|e| panic!("{method:?}, t = {}: {e}", sim.state().time));
+        penetration = penetration.max(r.max_penetration);
+    }
+    let error = energy_error(&sim);
+    eprintln!(
+        "{D}D {method:?} stack: largest penetration {penetration:.3e} m, energy error {error:.2e}"
+    );
+    (penetration, error)
+}
+
+fn a_stack_of_soft_blocks_lands_and_settles<const D: usize>()
+where
+    Dim<D>: SpatialDim<D>,
+{
+    let (penetration, error) = stack::<D>(ContactMethod::SoftWay);
+    assert!(error < 2e-2, "energy error {error}");
+    // Measured 3.6e-4 m (2D) and 1.05e-3 m (3D): far above the penalty's own pressure / zeta
+    // (3e-6 m at the bottom of the stack), an open defect (book, contact chapter); with one
+    // pass the 2D stack went 3.6 mm deep and the 3D one did not converge at its landing.
+    assert!(penetration < 2e-3, "penetration {penetration}");
+}
+
+both_dims!(a_stack_of_soft_blocks_lands_and_settles);
+
+mod open {
+    use softway::contact::ContactMethod;
+    #[test]
+    #[ignore = "no convergence within 50 iterations at t = 0.104 s (Uzawa on the second landing)"]
+    fn augmented_lagrangian_2d() {
+        super::stack::<2>(ContactMethod::AugmentedLagrangian);
+    }
+    #[test]
+    #[ignore = "the active set cycles at the landing (t = 0.069 s), reported as no convergence"]
+    fn implicit_projection_3d() {
+        super::stack::<3>(ContactMethod::ImplicitProjection);
+    }
+}
