@@ -3,6 +3,8 @@
 //! (tests/friction.rs, tests/contact.rs, tests/gripper.rs).
 #![cfg(feature = "formats")]
 
+mod common;
+
 use softway::dim::{Dim, SpatialDim};
 use softway::Simulation;
 
@@ -15,13 +17,8 @@ fn scene<const D: usize>(
 where
     Dim<D>: SpatialDim<D>,
 {
-    let path = std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("fixtures/scenes")
-        .join(format!("{name}.toml"));
     let overrides: Vec<String> = overrides.iter().map(|s| s.to_string()).collect();
-    let scene = softway::io::scene::load(&path, &overrides)
-        .and_then(|s| s.build::<D>())
-        .unwrap_or_else(|e| panic!("{name}: {e}"));
+    let scene = common::fixture::<D>(name, &overrides);
     let sim = scene.simulation().unwrap();
     let node = (0..sim.reference_positions().len())
         .min_by(|&a, &b| {

@@ -592,16 +592,11 @@ fn axisymmetric_bar_impact() {
 #[cfg(feature = "formats")]
 #[test]
 fn ring_drop_explicit_projection_energy_account() {
-    let path =
-        std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("fixtures/scenes/ring_drop.toml");
     let overrides = [
         "contact.method=\"explicit_projection\"".to_string(),
         "simulation.end_time=0.4".to_string(),
     ];
-    let scene = softway::io::scene::load(&path, &overrides)
-        .unwrap()
-        .build::<2>()
-        .unwrap();
+    let scene = common::fixture::<2>("ring_drop", &overrides);
     let mut sim = scene.simulation().unwrap();
     let h = sim.model().settings.time_step;
     let scheme = sim.model().settings.scheme;

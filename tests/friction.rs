@@ -228,17 +228,12 @@ where
 /// dissipated energy and the energy-account error relative to the energy reference.
 #[cfg(feature = "formats")]
 fn ring_drop(method: &str, friction: &str) -> (usize, f64, usize, f64, f64) {
-    let path =
-        std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("fixtures/scenes/ring_drop.toml");
     let overrides = [
         format!("contact.friction={friction}"),
         format!("contact.method=\"{method}\""),
         "simulation.end_time=0.4".to_string(),
     ];
-    let scene = softway::io::scene::load(&path, &overrides)
-        .unwrap()
-        .build::<2>()
-        .unwrap();
+    let scene = common::fixture::<2>("ring_drop", &overrides);
     let mut sim = scene.simulation().unwrap();
     let (mut iterations, mut most, mut contact_steps) = (0, 0, 0);
     while sim.state().time < scene.end_time - 1e-9 {

@@ -160,12 +160,7 @@ mod d3 {
 #[cfg(feature = "formats")]
 #[test]
 fn bundled_gripper_scene_lifts_the_block() {
-    let path =
-        std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("fixtures/scenes/gripper.toml");
-    let scene = softway::io::scene::load(&path, &[])
-        .unwrap()
-        .build::<2>()
-        .unwrap();
+    let scene = common::fixture::<2>("gripper", &[]);
     let mut sim = scene.simulation().unwrap();
     let mut at_hold = 0.0;
     while sim.state().time < scene.end_time - 1e-9 {

@@ -83,3 +83,17 @@ pub fn vec_d<const D: usize>(v: [f64; 3]) -> SVector<f64, D> {
 pub fn dense(a: softway::simulation::SymmetricMatrix<'_>) -> DMatrix<f64> {
     a.to_dense()
 }
+
+/// The bundled scene `fixtures/scenes/{name}.toml` with `overrides` (`key=value`, as `--set`).
+#[cfg(feature = "formats")]
+pub fn fixture<const D: usize>(name: &str, overrides: &[String]) -> softway::io::scene::Scene<D>
+where
+    softway::dim::Dim<D>: softway::dim::SpatialDim<D>,
+{
+    let path = std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("fixtures/scenes")
+        .join(format!("{name}.toml"));
+    softway::io::scene::load(&path, overrides)
+        .and_then(|s| s.build::<D>())
+        .unwrap_or_else(|e| panic!("{name}: {e}"))
+}
