@@ -171,7 +171,7 @@ where
         for i in 0..vals.len() {
             vals[i] = m_vals[i] / h + d1 * h * k_vals[i];
             if let Some(c) = &self.damping {
-                vals[i] += alpha * c[i];
+                vals[i] += alpha * c.val()[i];
             }
         }
         let mut diag_sum = 0.0;
@@ -347,7 +347,7 @@ where
                 let i = row_idx[k];
                 vals[k] += mass[k] / h;
                 if let Some(c) = &self.damping {
-                    vals[k] += alpha * c[k];
+                    vals[k] += alpha * c.val()[k];
                 }
                 if self.prescribed[i].is_some() || self.prescribed[j].is_some() {
                     vals[k] = if i == j { scale } else { 0.0 };

@@ -110,7 +110,7 @@ where
     boundary_faces: Vec<Vec<usize>>,
     nodal_mass: Vec<f64>,
     /// Rayleigh damping `C` on the pattern of M and K (`None`: no body is damped).
-    damping: Option<Vec<f64>>,
+    damping: Option<SparseColMat<usize, f64>>,
     /// Whether internal forces and the tangent are assembled every Newton iteration (a law
     /// that is not linear; tests switch it on for linear ones to compare the two paths).
     general_path: bool,
@@ -503,7 +503,7 @@ where
         };
         let general_path = integration.iter().any(|b| !b.law.is_linear());
         let body_damping: Vec<_> = bodies.iter().map(|b| b.damping).collect();
-        let damping = damping::damping_values(&body_damping, &node_offsets, &matrices, D);
+        let damping = damping::damping_matrix(&body_damping, &node_offsets, &matrices, D);
         let mut sim = Simulation {
             model,
             state,

@@ -288,11 +288,16 @@ where
             assembly::symmetric_mul_add(&self.matrices.mass, &v1, 1.0 / h, &mut momentum1);
             // Linear laws: K u_alpha with the K assembled once; other laws: the element
             // kernel's forces and tangent at this iterate.
-            let mut internal = if general {
-                let alpha = self.model.settings.scheme.alpha;
-                let v_alpha: Vec<f64> = (0..ndof)
+            // The velocity at the collocation instant: rate-dependent laws and damping read it.
+            let alpha = self.model.settings.scheme.alpha;
+            let v_alpha: Vec<f64> = if general || self.damping.is_some() {
+                (0..ndof)
                     .map(|i| (1.0 - alpha) * v0[i] + alpha * v1[i])
-                    .collect();
+                    .collect()
+            } else {
+                Vec::new()
+            };
+            let mut internal = if general {
                 let integrated = assembly::integrate(
                     &self.table,
                     Some(&self.pattern),
@@ -316,13 +321,9 @@ where
                 assembly::symmetric_mul_add(&self.matrices.stiffness, &u_alpha, 1.0, &mut internal);
                 internal
             };
-            if self.damping.is_some() {
+            if let Some(c) = &self.damping {
                 // Rayleigh damping at the collocation instant, with the internal forces.
-                let alpha = self.model.settings.scheme.alpha;
-                let v_alpha: Vec<f64> = (0..ndof)
-                    .map(|i| (1.0 - alpha) * v0[i] + alpha * v1[i])
-                    .collect();
-                self.add_damping_force(&v_alpha, 1.0, &mut internal);
+                assembly::symmetric_mul_add(c, &v_alpha, 1.0, &mut internal);
             }
             let mut free_norm2 = 0.0;
             let mut scale2 = [0.0f64; 5];

@@ -289,13 +289,13 @@ where
         // The damping force's work along the eq 22 displacement h (v0 + v1) / 2: with the
         // force at v_alpha, exactly the kinetic energy it removes from a rigid motion.
         let mut damping_loss = 0.0;
-        if self.damping.is_some() {
+        if let Some(c) = &self.damping {
             let alpha = self.model.settings.scheme.alpha;
             let v_alpha: Vec<f64> = (0..ndof)
                 .map(|i| (1.0 - alpha) * v0[i] + alpha * v1[i])
                 .collect();
             let mut force = vec![0.0; ndof];
-            self.add_damping_force(&v_alpha, 1.0, &mut force);
+            assembly::symmetric_mul_add(c, &v_alpha, 1.0, &mut force);
             damping_loss = (0..ndof)
                 .map(|i| force[i] * 0.5 * h * (v0[i] + v1[i]))
                 .sum();

@@ -338,13 +338,8 @@ impl LoadedScene {
     }
 
     pub(super) fn friction(&self, key: &str, f: &FrictionSpec) -> Result<FrictionLaw> {
-        let non_negative = |k: &str, v: f64| {
-            if v >= 0.0 && v.is_finite() {
-                Ok(())
-            } else {
-                Err(self.error(&format!("{key}.{k}"), v, "a finite value >= 0"))
-            }
-        };
+        let non_negative =
+            |k: &str, v: f64, unit: &str| self.non_negative(&format!("{key}.{k}"), v, unit);
         let regularization = |r: &Option<f64>| -> Result<f64> {
             match r {
                 Some(r) => self.positive(&format!("{key}.regularization"), *r, "m/s"),
@@ -357,14 +352,14 @@ impl LoadedScene {
                 coefficient,
                 regularization: r,
             } => {
-                non_negative("coefficient", *coefficient)?;
+                non_negative("coefficient", *coefficient, "-")?;
                 FrictionLaw::Coulomb {
                     coefficient: *coefficient,
                     regularization: regularization(r)?,
                 }
             }
             FrictionSpec::Tresca { limit } => {
-                non_negative("limit", *limit)?;
+                non_negative("limit", *limit, "Pa")?;
                 FrictionLaw::Tresca {
                     limit: *limit,
                     regularization: DEFAULT_REGULARIZATION,
@@ -375,8 +370,8 @@ impl LoadedScene {
                 exponent,
                 regularization: r,
             } => {
-                non_negative("coefficient", *coefficient)?;
-                non_negative("exponent", *exponent)?;
+                non_negative("coefficient", *coefficient, "Pa (s/m)^p")?;
+                non_negative("exponent", *exponent, "-")?;
                 FrictionLaw::Viscoplastic {
                     coefficient: *coefficient,
                     exponent: *exponent,
@@ -393,9 +388,7 @@ impl LoadedScene {
                 if !(*poissons_ratio > -1.0 && *poissons_ratio < 0.5) {
                     return Err(self.error(&format!("{key}.poissons_ratio"), poissons_ratio, "a value in (-1, 0.5)"));
                 }
-                if !(*density >= 0.0 && density.is_finite()) {
-                    return Err(self.error(&format!("{key}.density"), density, "a finite value >= 0 [kg/m^3]"));
-                }
+                self.non_negative(&format!("{key}.density"), *density, "kg/m^3")?;
                 Ok(Material::LinearElastic(LinearElastic::new(*youngs_modulus, *poissons_ratio, *density)?))
             }
             MaterialSpec::Hypoelastic { .. } | MaterialSpec::NortonHoff { .. } => Err(Error::NotAvailable {
