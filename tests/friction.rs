@@ -51,6 +51,21 @@ macro_rules! per_method {
 per_method!(slide, block_on_a_slope_slides);
 per_method!(stick, block_on_a_slope_sticks);
 
+/// The scene a user tries first: 30 degrees, mu = 0.7 (tan 30 / 0.7 = 0.82 of the cone). Open.
+mod stick_near_the_cone {
+    use super::*;
+    #[test]
+    #[ignore = "walks 1.1 cm over 0.9 s: energy enters where edge nodes pass between stick and slip"]
+    fn d2_soft_way() {
+        sticks_on_a_slope_of::<2>(ContactMethod::SoftWay, 30.0);
+    }
+    #[test]
+    #[ignore = "walks 1.4 cm over 0.9 s: energy enters where edge nodes pass between stick and slip"]
+    fn d3_soft_way() {
+        sticks_on_a_slope_of::<3>(ContactMethod::SoftWay, 30.0);
+    }
+}
+
 /// A 0.2 x 0.1 (x 0.1) m block resting on the plane y = 0 (z = 0 in 3D) under gravity tilted by
 /// 30 degrees (down the slope along +x), E = 1e7 Pa, zeta = 1e10 Pa/m (a penetration of about
 /// 1e-7 m), Coulomb `mu`, the default scheme and tolerances.
@@ -147,7 +162,14 @@ fn block_on_a_slope_sticks<const D: usize>(method: ContactMethod)
 where
     Dim<D>: SpatialDim<D>,
 {
-    let mut sim = slope::<D>(0.7, method, material_damping(), 25.0);
+    sticks_on_a_slope_of::<D>(method, 25.0);
+}
+
+fn sticks_on_a_slope_of<const D: usize>(method: ContactMethod, degrees: f64)
+where
+    Dim<D>: SpatialDim<D>,
+{
+    let mut sim = slope::<D>(0.7, method, material_damping(), degrees);
     let settle = run_to(&mut sim, 0.1);
     let start = mean_along::<D>(&sim.state().displacement);
     let (mut low, mut high) = (start, start);
