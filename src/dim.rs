@@ -70,6 +70,20 @@ pub trait SpatialDim<const D: usize>:
         r: f64,
     ) -> SMatrix<f64, 6, D>;
 
+    /// One node's share of the 3D gradient of a field whose nodal value is `u`: the in-plane
+    /// block `u grad^T`, and in axisymmetric kinematics the hoop term `n u_r / r` in the zz
+    /// slot (the updated-Lagrangian kinematics and the geometric stiffness use it).
+    fn gradient_3d(
+        kinematics: Kinematics,
+        n: f64,
+        grad: &SVector<f64, D>,
+        r: f64,
+        u: &SVector<f64, D>,
+    ) -> Matrix3<f64>;
+
+    /// The D x D block of a 3 x 3 tensor.
+    fn in_plane_block(t: &Matrix3<f64>) -> SMatrix<f64, D, D>;
+
     /// The measure factor of a quadrature point: 1 for plane and solid kinematics, `2 pi r`
     /// for axisymmetric ones (integrals are over the whole revolution).
     fn measure_factor(kinematics: Kinematics, position: &SVector<f64, D>) -> f64;
@@ -122,6 +136,26 @@ impl SpatialDim<2> for Dim<2> {
             b[(2, 0)] = if r > 0.0 { n / r } else { 0.0 };
         }
         b
+    }
+
+    fn gradient_3d(
+        kinematics: Kinematics,
+        n: f64,
+        grad: &Vector2<f64>,
+        r: f64,
+        u: &Vector2<f64>,
+    ) -> Matrix3<f64> {
+        let mut g = Matrix3::zeros();
+        g.fixed_view_mut::<2, 2>(0, 0)
+            .copy_from(&(u * grad.transpose()));
+        if kinematics == Kinematics::Axisymmetric && r > 0.0 {
+            g[(2, 2)] = n * u.x / r;
+        }
+        g
+    }
+
+    fn in_plane_block(t: &Matrix3<f64>) -> Matrix2<f64> {
+        t.fixed_view::<2, 2>(0, 0).into_owned()
     }
 
     fn measure_factor(kinematics: Kinematics, position: &Vector2<f64>) -> f64 {
@@ -181,6 +215,20 @@ impl SpatialDim<3> for Dim<3> {
         b[(5, 0)] = grad.y;
         b[(5, 1)] = grad.x;
         b
+    }
+
+    fn gradient_3d(
+        _kinematics: Kinematics,
+        _n: f64,
+        grad: &Vector3<f64>,
+        _r: f64,
+        u: &Vector3<f64>,
+    ) -> Matrix3<f64> {
+        u * grad.transpose()
+    }
+
+    fn in_plane_block(t: &Matrix3<f64>) -> Matrix3<f64> {
+        *t
     }
 
     fn measure_factor(_kinematics: Kinematics, _position: &Vector3<f64>) -> f64 {

@@ -221,6 +221,12 @@ pub struct KernelFields<'a> {
     pub velocity: Option<&'a [f64]>,
     /// Weights of `dsigma/deps` and `dsigma/deps_dot` in the tangent.
     pub weights: (f64, f64),
+    /// Displacements at the start of the step (flat) [m]: the reference configuration of
+    /// updated-Lagrangian laws; `None`: `displacement` (no increment).
+    pub start: Option<&'a [f64]>,
+    /// Displacements at the end of the step [m], for the history of updated-Lagrangian laws;
+    /// `None`: `displacement`.
+    pub end: Option<&'a [f64]>,
     /// The step [s] and alpha, passed to the law.
     pub time_step: f64,
     /// alpha.
@@ -280,9 +286,46 @@ fn cell_kernel<const D: usize>(
     let node_value = |values: &[f64], node: usize| {
         SVector::<f64, D>::from_column_slice(&values[node * D..node * D + D])
     };
+    // Updated-Lagrangian laws integrate on the configuration at t_alpha, reached from the
+    // one at t0 (their reference) by the increment u_alpha - u0.
+    let updated = body.law.updated_lagrangian();
+    let zero = SVector::<f64, D>::zeros();
+    let field = |values: Option<&[f64]>, node: usize| values.map_or(zero, |u| node_value(u, node));
+    let start = fields.start.or(fields.displacement);
+    let end = fields.end.or(fields.displacement);
+    let mut x_local = [zero; MAX_NODES];
+    let mut du_alpha = [zero; MAX_NODES];
+    let mut du_end = [zero; MAX_NODES];
+    for (a, &node) in cell.iter().enumerate() {
+        x_local[a] = x[node];
+        if updated {
+            let u0 = field(start, node);
+            x_local[a] += u0;
+            du_alpha[a] = field(fields.displacement, node) - u0;
+            du_end[a] = field(end, node) - u0;
+        }
+    }
     for (iq, q) in kind.quadrature().iter().enumerate() {
-        let (shape, grads, position, det) = spatial_gradients::<D>(kind, cell, x, q.xi);
-        let dv = q.weight * det * <Dim<D>>::measure_factor(body.kinematics, &position);
+        let (shape, mut grads, mut position, det) = local_gradients::<D>(kind, &x_local[..n], q.xi);
+        let mut dv = q.weight * det * <Dim<D>>::measure_factor(body.kinematics, &position);
+        let mut increment = nalgebra::Matrix3::<f64>::zeros();
+        let mut end_increment = nalgebra::Matrix3::<f64>::zeros();
+        if updated {
+            for a in 0..n {
+                let (na, ga, r) = (shape[a], &grads[a], position[0]);
+                increment += <Dim<D>>::gradient_3d(body.kinematics, na, ga, r, &du_alpha[a]);
+                end_increment += <Dim<D>>::gradient_3d(body.kinematics, na, ga, r, &du_end[a]);
+            }
+            // To t_alpha: gradients F^-T grad0, volume det F dV0 (the hoop stretch r/r0
+            // included), position moved.
+            let f = SMatrix::<f64, D, D>::identity() + <Dim<D>>::in_plane_block(&increment);
+            let f_inv = <Dim<D>>::inverse(&f).unwrap_or_else(SMatrix::zeros);
+            dv *= (nalgebra::Matrix3::identity() + increment).determinant();
+            for a in 0..n {
+                grads[a] = f_inv.transpose() * grads[a];
+                position += du_alpha[a] * shape[a];
+            }
+        }
         let points = iq * per_point..(iq + 1) * per_point;
         let history = out.history.get(points.clone()).unwrap_or(&[]);
         let new_point_history = match new_history.as_deref_mut() {
@@ -294,7 +337,7 @@ fn cell_kernel<const D: usize>(
         let mut spin = nalgebra::Matrix3::<f64>::zeros();
         for (a, &node) in cell.iter().enumerate() {
             b[a] = <Dim<D>>::strain_operator(body.kinematics, shape[a], &grads[a], position[0]);
-            if let Some(u) = fields.displacement {
+            if let (Some(u), false) = (fields.displacement, updated) {
                 strain += b[a] * node_value(u, node);
             }
             if let Some(v) = fields.velocity {
@@ -316,6 +359,8 @@ fn cell_kernel<const D: usize>(
                 spin,
                 time_step: fields.time_step,
                 alpha: fields.alpha,
+                increment,
+                end_increment,
             },
             history,
             new_point_history,
@@ -339,6 +384,17 @@ fn cell_kernel<const D: usize>(
                         }
                     }
                 }
+            }
+            if updated {
+                geometric_stiffness::<D>(
+                    body.kinematics,
+                    &shape[..n],
+                    &grads[..n],
+                    position[0],
+                    &response.stress,
+                    fields.weights.0 * dv,
+                    &mut K,
+                );
             }
         }
         if want_mass {
@@ -421,19 +477,40 @@ pub fn spatial_gradients<const D: usize>(
 where
     Dim<D>: SpatialDim<D>,
 {
+    let mut local = [SVector::<f64, D>::zeros(); MAX_NODES];
+    for (a, &node) in cell.iter().enumerate() {
+        local[a] = x[node];
+    }
+    local_gradients::<D>(kind, &local[..cell.len()], xi)
+}
+
+/// [`spatial_gradients`] on the cell's own node positions `x` (in cell order).
+fn local_gradients<const D: usize>(
+    kind: ElementKind,
+    x: &[SVector<f64, D>],
+    xi: [f64; 3],
+) -> (
+    [f64; MAX_NODES],
+    [SVector<f64, D>; MAX_NODES],
+    SVector<f64, D>,
+    f64,
+)
+where
+    Dim<D>: SpatialDim<D>,
+{
     let s = kind.shape(xi);
     let mut jac = SMatrix::<f64, D, D>::zeros();
     let mut position = SVector::<f64, D>::zeros();
-    for (a, &node) in cell.iter().enumerate() {
-        position += x[node] * s.n[a];
+    for (a, xa) in x.iter().enumerate() {
+        position += xa * s.n[a];
         for k in 0..D {
-            jac.column_mut(k).axpy(s.dn[a][k], &x[node], 1.0);
+            jac.column_mut(k).axpy(s.dn[a][k], xa, 1.0);
         }
     }
     let det = <Dim<D>>::det(&jac);
     let inv = <Dim<D>>::inverse(&jac).unwrap_or_else(SMatrix::zeros);
     let mut grads = [SVector::<f64, D>::zeros(); MAX_NODES];
-    for a in 0..cell.len() {
+    for a in 0..x.len() {
         let mut dxi = SVector::<f64, D>::zeros();
         for k in 0..D {
             dxi[k] = s.dn[a][k];
@@ -442,6 +519,42 @@ where
         grads[a] = inv.transpose() * dxi;
     }
     (s.n, grads, position, det)
+}
+
+/// Adds the geometric (initial-stress) stiffness `weight int grad(dv_a) : (grad(dv_b) sigma)`
+/// of one quadrature point to the blocks (b, a), b >= a, of `k`: the variation of the forces
+/// `int B^T sigma dV` through the configuration, at fixed stress (the stress's own variation
+/// is the material part; the Jaumann and volume terms, of the order of the stress, are left
+/// out, which keeps the tangent symmetric).
+fn geometric_stiffness<const D: usize>(
+    kinematics: crate::dim::Kinematics,
+    shape: &[f64],
+    grads: &[SVector<f64, D>],
+    r: f64,
+    stress: &Voigt,
+    weight: f64,
+    k: &mut [[f64; MAX_DOFS]; MAX_DOFS],
+) where
+    Dim<D>: SpatialDim<D>,
+{
+    let sigma = crate::material::stress_tensor(stress);
+    // The gradient of a unit displacement e_i of node a.
+    let unit = |a: usize, i: usize| {
+        let mut e = SVector::<f64, D>::zeros();
+        e[i] = 1.0;
+        <Dim<D>>::gradient_3d(kinematics, shape[a], &grads[a], r, &e)
+    };
+    for a in 0..shape.len() {
+        for j in 0..D {
+            let ha = unit(a, j) * sigma;
+            for bb in a..shape.len() {
+                for i in 0..D {
+                    let hb = unit(bb, i);
+                    k[bb * D + i][a * D + j] += weight * hb.component_mul(&ha).sum();
+                }
+            }
+        }
+    }
 }
 
 /// Stiffness and mass matrices of linear bodies, assembled on the reference configuration.
@@ -718,3 +831,6 @@ where
         history: new_history,
     }
 }
+
+#[cfg(test)]
+mod tests;

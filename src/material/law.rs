@@ -8,6 +8,11 @@
 //! `int B^T (d1 h dsigma/deps + alpha dsigma/deps_dot) B` (d1 = alpha^2 / 2, the weight of
 //! `v1` in `u_alpha`). A linear law (constant tangent, no history) is assembled once and
 //! factored once per step size; any other law is evaluated every Newton iteration.
+//!
+//! Small-strain laws read `strain` (of the displacement from the reference configuration);
+//! updated-Lagrangian laws ([`ConstitutiveLaw::updated_lagrangian`]) read the increment's
+//! gradient from the start of the step, keep their stress as history and are integrated on
+//! the configuration at `t_alpha`.
 
 use nalgebra::Matrix3;
 
@@ -28,6 +33,13 @@ pub struct PointKinematics {
     pub time_step: f64,
     /// The scheme's alpha [-].
     pub alpha: f64,
+    /// Updated-Lagrangian laws: the gradient of the displacement increment from `t0` to
+    /// `t_alpha` with respect to the configuration at `t0` (3 x 3: in-plane block, and the
+    /// hoop term `du_r / r` in the zz slot of axisymmetric kinematics) [-].
+    pub increment: Matrix3<f64>,
+    /// The same from `t0` to `t1` (the configuration update), for the history at the end of
+    /// the step [-].
+    pub end_increment: Matrix3<f64>,
 }
 
 /// What a law returns at one point.
@@ -53,6 +65,14 @@ pub trait ConstitutiveLaw: Send + Sync {
     /// Whether the stress is a constant linear function of the strain (no rate, no history):
     /// such a body is assembled once.
     fn is_linear(&self) -> bool;
+
+    /// Whether the law works on the configuration at the start of the step (updated
+    /// Lagrangian: large rotations). The kernel then integrates on the current configuration,
+    /// fills [`PointKinematics::increment`] and adds the geometric (initial-stress)
+    /// stiffness; otherwise everything is on the reference configuration (small strain).
+    fn updated_lagrangian(&self) -> bool {
+        false
+    }
 
     /// The response at one point; writes the history at the end of the step into
     /// `new_history` (`history_len` values) from the one at its start, `history`.

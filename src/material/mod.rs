@@ -7,8 +7,10 @@
 
 use serde::{Deserialize, Serialize};
 
+mod hypoelastic;
 mod law;
 
+pub use hypoelastic::{from_voigt as stress_tensor, Hypoelastic, RotationUpdate};
 pub use law::{ConstitutiveLaw, PointKinematics, PointResponse};
 
 use crate::dim::{Kinematics, VoigtMatrix};
@@ -108,6 +110,8 @@ impl LinearElastic {
 pub enum Material {
     /// Isotropic linear elasticity.
     LinearElastic(LinearElastic),
+    /// Corotational hypoelasticity (large rotations, small strains; updated Lagrangian).
+    Hypoelastic(Hypoelastic),
 }
 
 impl Material {
@@ -115,6 +119,7 @@ impl Material {
     pub fn density(&self) -> f64 {
         match self {
             Material::LinearElastic(m) => m.density,
+            Material::Hypoelastic(m) => m.density,
         }
     }
 
@@ -122,6 +127,7 @@ impl Material {
     pub fn validate(&self) -> Result<()> {
         match self {
             Material::LinearElastic(m) => m.validate(),
+            Material::Hypoelastic(m) => m.validate(),
         }
     }
 
@@ -129,6 +135,7 @@ impl Material {
     pub fn wave_speed(&self, kinematics: Kinematics) -> f64 {
         match self {
             Material::LinearElastic(m) => m.wave_speed(kinematics),
+            Material::Hypoelastic(m) => m.elastic().wave_speed(kinematics),
         }
     }
 }
@@ -159,12 +166,21 @@ impl ConstitutiveLaw for Material {
     fn history_len(&self) -> usize {
         match self {
             Material::LinearElastic(m) => m.history_len(),
+            Material::Hypoelastic(m) => m.history_len(),
         }
     }
 
     fn is_linear(&self) -> bool {
         match self {
             Material::LinearElastic(m) => m.is_linear(),
+            Material::Hypoelastic(m) => m.is_linear(),
+        }
+    }
+
+    fn updated_lagrangian(&self) -> bool {
+        match self {
+            Material::LinearElastic(m) => m.updated_lagrangian(),
+            Material::Hypoelastic(m) => m.updated_lagrangian(),
         }
     }
 
@@ -176,6 +192,7 @@ impl ConstitutiveLaw for Material {
     ) -> PointResponse {
         match self {
             Material::LinearElastic(m) => m.evaluate(point, history, new_history),
+            Material::Hypoelastic(m) => m.evaluate(point, history, new_history),
         }
     }
 }
@@ -290,6 +307,8 @@ pub(crate) mod tests {
             spin: Matrix3::zeros(),
             time_step: 1e-3,
             alpha: 0.75,
+            increment: Matrix3::zeros(),
+            end_increment: Matrix3::zeros(),
         }
     }
 

@@ -791,17 +791,20 @@ where
     }
 
     /// `a^T K b`, with each body's mean removed from both first: `K` annihilates
-    /// translations, and removing them avoids the cancellation of large equal terms.
+    /// translations, and removing them avoids the cancellation of large equal terms. Bodies
+    /// of updated-Lagrangian laws are left out: the reference `K` does not annihilate their
+    /// rotations.
     pub(super) fn stiffness_product(&self, a: &[f64], b: &[f64]) -> f64 {
         let centred = |u: &[f64]| {
             let mut w = u.to_vec();
             for body in 0..self.model.bodies.len() {
                 let range = self.body_nodes(BodyId(body));
                 let count = range.len().max(1) as f64;
+                let updated = self.integration[body].law.updated_lagrangian();
                 for k in 0..D {
                     let mean = range.clone().map(|n| u[n * D + k]).sum::<f64>() / count;
                     for n in range.clone() {
-                        w[n * D + k] -= mean;
+                        w[n * D + k] = if updated { 0.0 } else { w[n * D + k] - mean };
                     }
                 }
             }

@@ -298,6 +298,11 @@ where
                 Vec::new()
             };
             let mut internal = if general {
+                // The configuration update u1, for the history of updated-Lagrangian laws.
+                let (c0, c1) = self.model.settings.scheme.update_weights();
+                let u1: Vec<f64> = (0..ndof)
+                    .map(|i| u0[i] + h * (c0 * v0[i] + c1 * v1[i]))
+                    .collect();
                 let integrated = assembly::integrate(
                     &self.table,
                     Some(&self.pattern),
@@ -306,6 +311,8 @@ where
                     &KernelFields {
                         displacement: Some(&u_alpha),
                         velocity: Some(&v_alpha),
+                        start: Some(u0),
+                        end: Some(&u1),
                         weights: (d1 * h, alpha),
                         time_step: h,
                         alpha,

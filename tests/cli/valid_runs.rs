@@ -523,12 +523,12 @@ fn announced_features_are_refused_cleanly() {
             "run",
             path,
             "--set",
-            "bodies.0.material = { model = \"hypoelastic\", youngs_modulus = 1.0e6, \
-             poissons_ratio = 0.3, density = 1000.0 }",
+            "bodies.0.material = { model = \"norton_hoff\", consistency = 1.0e6, \
+             exponent = 0.2, density = 1000.0, bulk_penalty = 1.0e9 }",
         ],
     );
     assert!(
-        err.contains("hypoelastic material is not available"),
+        err.contains("norton_hoff material is not available"),
         "{err}"
     );
 }

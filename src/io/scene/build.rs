@@ -14,7 +14,7 @@ use crate::contact::resolution::DEFAULT_REGULARIZATION;
 use crate::contact::{ContactMethod, ContactSettings, FrictionLaw, GapDisplacement};
 use crate::dim::{Dim, Kinematics, SpatialDim};
 use crate::error::{Error, Result};
-use crate::material::{LinearElastic, Material};
+use crate::material::{Hypoelastic, LinearElastic, Material, RotationUpdate};
 use crate::mesh::Mesh;
 use crate::simulation::{Body, Constraint, MassKind, Settings};
 use crate::solver::FillOrdering;
@@ -382,18 +382,41 @@ impl LoadedScene {
     }
 
     fn material(&self, key: &str, m: &MaterialSpec) -> Result<Material> {
+        let elastic =
+            |youngs_modulus: f64, poissons_ratio: f64, density: f64| -> Result<LinearElastic> {
+                self.positive(&format!("{key}.youngs_modulus"), youngs_modulus, "Pa")?;
+                if !(poissons_ratio > -1.0 && poissons_ratio < 0.5) {
+                    return Err(self.error(
+                        &format!("{key}.poissons_ratio"),
+                        poissons_ratio,
+                        "a value in (-1, 0.5)",
+                    ));
+                }
+                self.non_negative(&format!("{key}.density"), density, "kg/m^3")?;
+                LinearElastic::new(youngs_modulus, poissons_ratio, density)
+            };
         match m {
             MaterialSpec::LinearElastic { youngs_modulus, poissons_ratio, density } => {
-                self.positive(&format!("{key}.youngs_modulus"), *youngs_modulus, "Pa")?;
-                if !(*poissons_ratio > -1.0 && *poissons_ratio < 0.5) {
-                    return Err(self.error(&format!("{key}.poissons_ratio"), poissons_ratio, "a value in (-1, 0.5)"));
-                }
-                self.non_negative(&format!("{key}.density"), *density, "kg/m^3")?;
-                Ok(Material::LinearElastic(LinearElastic::new(*youngs_modulus, *poissons_ratio, *density)?))
+                Ok(Material::LinearElastic(elastic(*youngs_modulus, *poissons_ratio, *density)?))
             }
-            MaterialSpec::Hypoelastic { .. } | MaterialSpec::NortonHoff { .. } => Err(Error::NotAvailable {
-                feature: format!("{}: the {} material", self.path.display(), if matches!(m, MaterialSpec::Hypoelastic { .. }) { "hypoelastic" } else { "norton_hoff" }),
-                detail: format!("`{key}.model` is accepted by the parser, but only \"linear_elastic\" runs in this version"),
+            MaterialSpec::Hypoelastic { youngs_modulus, poissons_ratio, density, rotation } => {
+                let e = elastic(*youngs_modulus, *poissons_ratio, *density)?;
+                let rotation = match rotation.as_deref() {
+                    None | Some("hughes_winget") => RotationUpdate::HughesWinget,
+                    Some("paper_series") => RotationUpdate::PaperSeries,
+                    Some(other) => {
+                        return Err(self.error(
+                            &format!("{key}.rotation"),
+                            format!("\"{other}\""),
+                            "\"hughes_winget\" (exactly orthogonal, the default) or \"paper_series\" (eq 52)",
+                        ))
+                    }
+                };
+                Ok(Material::Hypoelastic(Hypoelastic::new(e.youngs_modulus, e.poissons_ratio, e.density, rotation)?))
+            }
+            MaterialSpec::NortonHoff { .. } => Err(Error::NotAvailable {
+                feature: format!("{}: the norton_hoff material", self.path.display()),
+                detail: format!("`{key}.model` is accepted by the parser, but only \"linear_elastic\" and \"hypoelastic\" run in this version"),
             }),
         }
     }

@@ -199,7 +199,7 @@ pub struct MeshSpec {
 }
 
 /// `material = { model = ..., ... }`.
-// Not `Material`: the scene parses hypoelastic and norton_hoff, announced but not in it yet.
+// Not `Material`: the scene parses norton_hoff, announced but not in it yet.
 #[derive(Debug, Clone, Deserialize)]
 #[serde(tag = "model", rename_all = "snake_case", deny_unknown_fields)]
 pub enum MaterialSpec {

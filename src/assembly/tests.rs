@@ -1,0 +1,235 @@
+//! The element kernel's tangent against central differences of its own forces, for the
+//! updated-Lagrangian path (material and geometric stiffness).
+
+use nalgebra::{DMatrix, DVector, SVector};
+
+use super::*;
+use crate::material::{Hypoelastic, RotationUpdate};
+
+/// One cell of `kind` with nodes `x` (reference), its forces and its tangent
+/// `d forces / d u` (weights (1, 0)) at displacement `u` from the start displacement `u0`,
+/// with the history `history` (per quadrature point).
+fn forces_and_tangent<const D: usize>(
+    kind: ElementKind,
+    kinematics: Kinematics,
+    x: &[SVector<f64, D>],
+    u0: &[f64],
+    u: &[f64],
+    history: &[f64],
+) -> (DVector<f64>, DMatrix<f64>)
+where
+    Dim<D>: SpatialDim<D>,
+{
+    let law = Hypoelastic::new(1e6, 0.3, 1000.0, RotationUpdate::HughesWinget).unwrap();
+    let body = BodyIntegration::new(kinematics, Material::Hypoelastic(law));
+    let cell: Vec<usize> = (0..kind.nodes()).collect();
+    let m = cell.len() * D;
+    let mut values = vec![0.0; m * (m + 1) / 2];
+    let mut force = vec![0.0; m];
+    let mut new_history = vec![0.0; history.len()];
+    let fields = KernelFields {
+        displacement: Some(u),
+        start: Some(u0),
+        weights: (1.0, 0.0),
+        ..Default::default()
+    };
+    let out = CellOutput {
+        history,
+        new_history: Some(&mut new_history),
+        tangent: Some(&mut values),
+        force: Some(&mut force),
+        ..Default::default()
+    };
+    cell_kernel::<D>(kind, &cell, x, &body, &fields, out);
+    let mut k = DMatrix::zeros(m, m);
+    let mut slot = 0;
+    for_lower_pairs::<D>(&cell, |p, q| {
+        k[(p, q)] = values[slot];
+        k[(q, p)] = values[slot];
+        slot += 1;
+    });
+    (DVector::from_vec(force), k)
+}
+
+/// Central differences of the forces in direction `d`.
+fn difference<const D: usize>(
+    kind: ElementKind,
+    kinematics: Kinematics,
+    x: &[SVector<f64, D>],
+    u0: &[f64],
+    u: &[f64],
+    history: &[f64],
+    d: &DVector<f64>,
+) -> DVector<f64>
+where
+    Dim<D>: SpatialDim<D>,
+{
+    let eps = 1e-7;
+    let at = |s: f64| {
+        let w: Vec<f64> = u
+            .iter()
+            .zip(d.iter())
+            .map(|(a, b)| a + s * eps * b)
+            .collect();
+        forces_and_tangent::<D>(kind, kinematics, x, u0, &w, history).0
+    };
+    (at(1.0) - at(-1.0)) / (2.0 * eps)
+}
+
+/// A slightly distorted cell of `kind` away from the axis, a start displacement that turns
+/// and stretches it, and a pre-stress of `stress` Pa in every component.
+fn setup<const D: usize>(
+    kind: ElementKind,
+    stress: f64,
+) -> (Vec<SVector<f64, D>>, Vec<f64>, Vec<f64>) {
+    let corners: Vec<[f64; 3]> = match kind {
+        ElementKind::Tri3 => vec![[0.0, 0.0, 0.0], [1.0, 0.1, 0.0], [0.2, 0.9, 0.0]],
+        ElementKind::Quad4 => vec![
+            [0.0, 0.0, 0.0],
+            [1.0, 0.1, 0.0],
+            [1.1, 0.9, 0.0],
+            [0.1, 1.0, 0.0],
+        ],
+        ElementKind::Tet4 => vec![
+            [0.0, 0.0, 0.0],
+            [1.0, 0.1, 0.0],
+            [0.1, 0.9, 0.1],
+            [0.0, 0.1, 1.1],
+        ],
+        ElementKind::Hex8 => {
+            let mut c = Vec::new();
+            for z in [0.0, 1.0] {
+                for (x, y) in [(0.0, 0.0), (1.0, 0.0), (1.0, 1.0), (0.0, 1.0)] {
+                    c.push([x + 0.05 * y * z, y + 0.1 * x * z, z + 0.05 * x]);
+                }
+            }
+            c
+        }
+    };
+    // Off the axis (axisymmetric kinematics need r > 0).
+    let x: Vec<SVector<f64, D>> = corners
+        .iter()
+        .map(|c| SVector::from_fn(|i, _| c[i] + if i == 0 { 1.0 } else { 0.0 }))
+        .collect();
+    let u0: Vec<f64> = x
+        .iter()
+        .flat_map(|p| {
+            // A rotation of 0.4 rad about z plus a 2 % stretch along x.
+            let (c, s) = (0.4f64.cos(), 0.4f64.sin());
+            let mut q = *p;
+            q[0] = c * p[0] - s * p[1];
+            q[1] = s * p[0] + c * p[1];
+            q[0] *= 1.02;
+            (0..D).map(move |i| q[i] - p[i]).collect::<Vec<_>>()
+        })
+        .collect();
+    let points = kind.quadrature().len();
+    let history: Vec<f64> = (0..points)
+        .flat_map(|_| {
+            let mut s = [stress, 0.5 * stress, 0.3 * stress, 0.0, 0.0, 0.2 * stress];
+            if D == 3 {
+                s[3] = 0.1 * stress;
+                s[4] = -0.15 * stress;
+            }
+            s
+        })
+        .collect();
+    (x, u0, history)
+}
+
+fn relative(a: &DVector<f64>, b: &DVector<f64>) -> f64 {
+    (a - b).amax() / b.amax().max(1e-300)
+}
+
+fn check<const D: usize>(kind: ElementKind, kinematics: Kinematics)
+where
+    Dim<D>: SpatialDim<D>,
+{
+    let m = kind.nodes() * D;
+    let direction = DVector::from_fn(m, |i, _| ((i * 7 + 3) % 11) as f64 / 11.0 - 0.4);
+    // No pre-stress: the tangent is exact at the start of the step, and to first order
+    // in the increment after it.
+    let (x, u0, history) = setup::<D>(kind, 0.0);
+    let (_, k) = forces_and_tangent::<D>(kind, kinematics, &x, &u0, &u0, &history);
+    let fd = difference::<D>(kind, kinematics, &x, &u0, &u0, &history, &direction);
+    let e = relative(&(&k * &direction), &fd);
+    assert!(e < 1e-6, "{kind:?} {kinematics:?} unstressed: {e:e}");
+    // Pre-stressed (1 % of E): in the direction of a rigid rotation of the current
+    // configuration (in-plane) the geometric stiffness is the whole, exact answer.
+    let stress = 1e4;
+    let (x, u0, history) = setup::<D>(kind, stress);
+    let current: Vec<SVector<f64, D>> = x
+        .iter()
+        .enumerate()
+        .map(|(a, p)| p + SVector::from_column_slice(&u0[a * D..a * D + D]))
+        .collect();
+    let spin = DVector::from_fn(m, |i, _| {
+        let p = current[i / D];
+        match i % D {
+            0 => -p[1],
+            1 => p[0],
+            _ => 0.0,
+        }
+    });
+    let (f0, k) = forces_and_tangent::<D>(kind, kinematics, &x, &u0, &u0, &history);
+    let fd = difference::<D>(kind, kinematics, &x, &u0, &u0, &history, &spin);
+    let e = relative(&(&k * &spin), &fd);
+    eprintln!("{kind:?} {kinematics:?}: rotation {e:.2e}");
+    if kinematics != Kinematics::Axisymmetric {
+        assert!(e < 1e-6, "{kind:?} {kinematics:?} rotation: {e:e}");
+        // The forces turn with the body: d f = spin x f.
+        let turned = DVector::from_fn(m, |i, _| match i % D {
+            0 => -f0[i + 1],
+            1 => f0[i - 1],
+            _ => 0.0,
+        });
+        assert!(relative(&fd, &turned) < 1e-6, "{kind:?} {kinematics:?}");
+    } else {
+        // An in-plane rotation of an axisymmetric section is not rigid (it changes radii).
+        assert!(
+            e < 3.0 * stress / 1e6,
+            "{kind:?} axisymmetric rotation: {e:e}"
+        );
+    }
+    // In any direction the tangent leaves out only the Jaumann and volume terms, of the
+    // order of stress / E.
+    let fd = difference::<D>(kind, kinematics, &x, &u0, &u0, &history, &direction);
+    let e = relative(&(&k * &direction), &fd);
+    eprintln!("{kind:?} {kinematics:?}: pre-stressed {e:.2e}");
+    assert!(
+        e < 3.0 * stress / 1e6,
+        "{kind:?} {kinematics:?} pre-stressed: {e:e}"
+    );
+}
+
+#[test]
+fn updated_lagrangian_tangent_matches_differences_of_the_forces() {
+    for kinematics in [
+        Kinematics::PlaneStrain,
+        Kinematics::PlaneStress,
+        Kinematics::Axisymmetric,
+    ] {
+        check::<2>(ElementKind::Tri3, kinematics);
+        check::<2>(ElementKind::Quad4, kinematics);
+    }
+    check::<3>(ElementKind::Tet4, Kinematics::Solid);
+    check::<3>(ElementKind::Hex8, Kinematics::Solid);
+}
+
+/// Without the geometric stiffness a pre-stressed body's rotation would meet no stiffness:
+/// the material part alone annihilates it.
+#[test]
+fn the_material_part_alone_does_not_see_a_rotation() {
+    let kind = ElementKind::Quad4;
+    let (x, u0, history) = setup::<2>(kind, 0.0);
+    let (_, k) = forces_and_tangent::<2>(kind, Kinematics::PlaneStrain, &x, &u0, &u0, &history);
+    let spin = DVector::from_fn(8, |i, _| {
+        let p = x[i / 2] + SVector::<f64, 2>::from_column_slice(&u0[i / 2 * 2..i / 2 * 2 + 2]);
+        if i % 2 == 0 {
+            -p[1]
+        } else {
+            p[0]
+        }
+    });
+    assert!((&k * &spin).amax() < 1e-9 * k.amax());
+}
