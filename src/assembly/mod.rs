@@ -185,6 +185,10 @@ pub struct BodyIntegration {
     pub law: Arc<dyn ConstitutiveLaw>,
     /// Mass density [kg/m^3].
     pub density: f64,
+    /// Updated-Lagrangian laws: the stiffness-proportional Rayleigh coefficient b [s], as the
+    /// viscous stress `b E D` on the current configuration (a constant `b K` on the reference
+    /// configuration would damp rigid rotations).
+    pub stiffness_damping: f64,
 }
 
 impl BodyIntegration {
@@ -194,6 +198,7 @@ impl BodyIntegration {
             kinematics,
             law: Arc::new(material),
             density: material.density(),
+            stiffness_damping: 0.0,
         }
     }
 
@@ -246,6 +251,9 @@ struct CellOutput<'a> {
     mass: Option<&'a mut [f64]>,
     /// Internal forces on the cell's dofs (`nodes * D`).
     force: Option<&'a mut [f64]>,
+    /// The part of `force` from the stiffness-proportional damping of updated-Lagrangian
+    /// bodies.
+    damping_force: Option<&'a mut [f64]>,
     /// Volume-averaged stress.
     stress: Option<&'a mut Voigt>,
     /// Stored energy [J].
@@ -365,12 +373,24 @@ fn cell_kernel<const D: usize>(
             history,
             new_point_history,
         );
+        // Stiffness-proportional damping of updated-Lagrangian bodies: b E D.
+        let damping = body.stiffness_damping;
+        let damping_stress = if updated && damping > 0.0 {
+            response.stiffness * strain_rate * damping
+        } else {
+            Voigt::zeros()
+        };
         if want_tangent {
             let (w0, w1) = fields.weights;
+            let viscosity = if updated && damping > 0.0 {
+                response.viscosity + response.stiffness * damping
+            } else {
+                response.viscosity
+            };
             let tangent = if w1 == 0.0 {
                 response.stiffness * w0
             } else {
-                response.stiffness * w0 + response.viscosity * w1
+                response.stiffness * w0 + viscosity * w1
             };
             // K is symmetric for symmetric laws: compute the blocks (bb, a) with bb >= a and
             // mirror them after.
@@ -405,10 +425,19 @@ fn cell_kernel<const D: usize>(
             }
         }
         if out.force.is_some() {
+            let total = response.stress + damping_stress;
             for a in 0..n {
-                let fa = b[a].transpose() * response.stress * dv;
+                let fa = b[a].transpose() * total * dv;
                 for k in 0..D {
                     force[a * D + k] += fa[k];
+                }
+            }
+        }
+        if let Some(fd) = out.damping_force.as_deref_mut() {
+            for a in 0..n {
+                let fa = b[a].transpose() * damping_stress * dv;
+                for k in 0..D {
+                    fd[a * D + k] += fa[k];
                 }
             }
         }
@@ -731,6 +760,9 @@ pub struct Integrated {
     pub energy: f64,
     /// The material history at the end of the step, for these fields.
     pub history: Vec<f64>,
+    /// The part of `forces` from the stiffness-proportional damping of updated-Lagrangian
+    /// bodies [N] (empty when no such body is damped).
+    pub damping_forces: Vec<f64>,
 }
 
 /// Internal forces `f_int = int B^T sigma` integrated cell by cell from the law's stresses at
@@ -754,16 +786,24 @@ where
     let mut tangent = pattern.map(|p| vec![0.0; p.triplets]);
     let mut energy = 0.0;
     let mut new_history = vec![0.0; history_len(table, bodies)];
+    let mut damping_forces = Vec::new();
     let mut offset = 0;
     for seg in &table.segments {
         let per = values_per_cell(seg.kind, D);
         let m = seg.kind.nodes() * D;
         let body = &bodies[seg.body];
+        // Damped updated-Lagrangian bodies keep their damping forces apart too, in the
+        // second half of each cell's chunk.
+        let damped = body.stiffness_damping > 0.0 && body.law.updated_lagrangian();
+        let chunk = if damped { 2 * m } else { m };
+        if damped && damping_forces.is_empty() {
+            damping_forces = vec![0.0; ndof];
+        }
         let count = seg.cells.len();
         let hp = body.history_per_cell(seg.kind);
         let seg_history = history.get(offset..offset + count * hp).unwrap_or(&[]);
         // Per-cell forces, energies and histories, summed or copied in a fixed order.
-        let mut local = vec![0.0; count * m];
+        let mut local = vec![0.0; count * chunk];
         let mut energies = vec![0.0; count];
         let mut histories = vec![0.0; count * hp.max(1)];
         let k_seg: Option<&mut [f64]> = tangent
@@ -772,11 +812,13 @@ where
         let work =
             |c: usize, fl: &mut [f64], e: &mut f64, hl: &mut [f64], k: Option<&mut [f64]>| {
                 let cell = table.cell(seg.cells.start + c, seg.kind);
+                let (fl, fd) = fl.split_at_mut(m);
                 let out = CellOutput {
                     history: seg_history.get(c * hp..(c + 1) * hp).unwrap_or(&[]),
                     new_history: (hp > 0).then_some(hl),
                     tangent: k,
                     force: Some(fl),
+                    damping_force: damped.then_some(fd),
                     energy: Some(e),
                     ..Default::default()
                 };
@@ -786,7 +828,7 @@ where
         {
             use rayon::prelude::*;
             let cells = local
-                .par_chunks_mut(m)
+                .par_chunks_mut(chunk)
                 .zip(energies.par_iter_mut())
                 .zip(histories.par_chunks_mut(hp.max(1)));
             match k_seg {
@@ -803,18 +845,21 @@ where
         {
             let mut k_chunks = k_seg.map(|k| k.chunks_mut(per));
             let cells = local
-                .chunks_mut(m)
+                .chunks_mut(chunk)
                 .zip(energies.iter_mut())
                 .zip(histories.chunks_mut(hp.max(1)));
             for (c, ((fl, e), hl)) in cells.enumerate() {
                 work(c, fl, e, hl, k_chunks.as_mut().and_then(|it| it.next()));
             }
         }
-        for (c, fl) in local.chunks(m).enumerate() {
+        for (c, fl) in local.chunks(chunk).enumerate() {
             let cell = table.cell(seg.cells.start + c, seg.kind);
             for (a, &node) in cell.iter().enumerate() {
                 for k in 0..D {
                     f[node * D + k] += fl[a * D + k];
+                    if damped {
+                        damping_forces[node * D + k] += fl[m + a * D + k];
+                    }
                 }
             }
         }
@@ -829,6 +874,7 @@ where
         tangent,
         energy,
         history: new_history,
+        damping_forces,
     }
 }
 

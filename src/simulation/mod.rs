@@ -341,7 +341,11 @@ where
             for block in &body.mesh.blocks {
                 table.push_block(b, block.kind, &block.connectivity, offset);
             }
-            integration.push(BodyIntegration::new(settings.kinematics, body.material));
+            let mut body_integration = BodyIntegration::new(settings.kinematics, body.material);
+            if body_integration.law.updated_lagrangian() {
+                body_integration.stiffness_damping = body.damping.stiffness;
+            }
+            integration.push(body_integration);
         }
         let nodes = reference.len();
         let pattern = Pattern::new::<D>(&table, nodes)?;
@@ -502,7 +506,19 @@ where
             contact_memory: ContactMemory::default(),
         };
         let general_path = integration.iter().any(|b| !b.law.is_linear());
-        let body_damping: Vec<_> = bodies.iter().map(|b| b.damping).collect();
+        // Updated-Lagrangian bodies take their stiffness part in the element kernel.
+        let body_damping: Vec<_> = bodies
+            .iter()
+            .zip(&integration)
+            .map(|(b, i)| RayleighDamping {
+                mass: b.damping.mass,
+                stiffness: if i.law.updated_lagrangian() {
+                    0.0
+                } else {
+                    b.damping.stiffness
+                },
+            })
+            .collect();
         let damping = damping::damping_matrix(&body_damping, &node_offsets, &matrices, D);
         let mut sim = Simulation {
             model,

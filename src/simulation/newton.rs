@@ -79,6 +79,9 @@ pub(super) struct Solution<const D: usize> {
     pub relative: f64,
     /// The material history at the end of the step (the law's at the solution).
     pub material_history: Vec<f64>,
+    /// The damping forces the element kernel added at the solution (damped
+    /// updated-Lagrangian bodies; empty otherwise) [N].
+    pub kernel_damping_forces: Vec<f64>,
 }
 
 impl<const D: usize> Simulation<D>
@@ -231,6 +234,7 @@ where
         let general = self.uses_general_path();
         let mut tangent_values: Vec<f64> = Vec::new();
         let mut material_history = self.state.material_history.clone();
+        let mut kernel_damping_forces = Vec::new();
         loop {
             let x_gap = end_positions(&self.reference, &start.gap_u0, v0, &v1, h);
             if contact_in_newton {
@@ -322,6 +326,7 @@ where
                 );
                 tangent_values = integrated.tangent.unwrap_or_default();
                 material_history = integrated.history;
+                kernel_damping_forces = integrated.damping_forces;
                 integrated.forces
             } else {
                 let mut internal = vec![0.0; ndof];
@@ -429,6 +434,7 @@ where
                         iterations,
                         relative: rel,
                         material_history,
+                        kernel_damping_forces,
                     });
                 }
                 passes += 1;

@@ -270,6 +270,7 @@ where
             ref terms,
             ref vars,
             ref friction_normals,
+            ref kernel_damping_forces,
             ..
         } = solution;
         // The configuration update and the end-of-step projections.
@@ -300,6 +301,11 @@ where
                 .map(|i| force[i] * 0.5 * h * (v0[i] + v1[i]))
                 .sum();
         }
+        damping_loss += kernel_damping_forces
+            .iter()
+            .enumerate()
+            .map(|(i, f)| f * 0.5 * h * (v0[i] + v1[i]))
+            .sum::<f64>();
         let mut contact_forces = vec![vec![0.0; D]; self.model.obstacles.len()];
         for p in &terms.pairs {
             if let Some(k) = p.obstacle {
