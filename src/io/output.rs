@@ -374,6 +374,8 @@ where
     let mut last_history = 0.0;
     let mut next_vtk = scene.output.vtk_interval;
     let mut error = None;
+    // The largest rotation of each small-strain body, checked at every history row.
+    let mut turned: Vec<f64> = vec![0.0; scene.bodies.len()];
     while sim.state().time < end - 1e-9 * h {
         let t = sim.state().time;
         // The last step is shortened to end exactly at end_time.
@@ -392,6 +394,9 @@ where
                 let interval = scene.output.history_interval;
                 if interval == 0.0 || now - last_history >= interval * (1.0 - 1e-9) || last {
                     last_history = now;
+                    for (body, angle) in sim.small_strain_rotations() {
+                        turned[body.0] = turned[body.0].max(angle);
+                    }
                     if let Err(e) = history.row(
                         history_row(&sim, scene, Some(&report))
                             .iter()
@@ -433,6 +438,17 @@ where
     summary.energy_drift =
         ((e.total() - summary.initial_energy - e.external_work + e.dissipated).abs() / reference)
             .min(f64::MAX);
+    for (b, &angle) in turned.iter().enumerate() {
+        if angle > 0.0 {
+            summary.warnings.push(format!(
+                "body `{}` turned {:.0} degrees with a small-strain law (linear_elastic): a \
+                 finite rotation shows as strain there (wrong stresses, bodies that grow); use \
+                 material model = \"hypoelastic\" for large rotations",
+                scene.bodies[b].name,
+                angle.to_degrees()
+            ));
+        }
+    }
     // Booked energy growth closes the account, so energy_drift cannot show it: say it here.
     if e.dissipated < -1e-9 * reference {
         summary.warnings.push(format!(

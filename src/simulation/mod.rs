@@ -18,11 +18,13 @@ mod linear_solve;
 pub mod model;
 mod newton;
 pub mod observe;
+mod rotation;
 pub mod state;
 mod step;
 mod symmetric_matrix;
 
 pub use model::{Body, Constraint, MassKind, Model, RayleighDamping, Settings};
+pub use rotation::SMALL_STRAIN_ROTATION_LIMIT;
 pub use state::{ContactMemory, FactorRecord, MasterId, State};
 pub use symmetric_matrix::SymmetricMatrix;
 

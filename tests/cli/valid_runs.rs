@@ -772,3 +772,49 @@ fn rerun_recording_is_written() {
     let err = assert_invalid(&empty, &["run", path, "--rerun", "no/such/dir/run.rrd"]);
     assert!(err.contains("no/such/dir/run.rrd"), "{err}");
 }
+
+// ---------------------------------------------------------------------------------------------
+// Large rotations: a small-strain body that turns is reported; the hypoelastic one is not.
+
+const SPINNING: &str = r#"# A free plate spinning at 5 rad/s for 0.1 s (29 degrees).
+[simulation]
+dimension = 2
+time_step = 2.0e-3
+end_time = 0.1
+
+[[bodies]]
+name = "plate"
+mesh = { generator = "rectangle", min = [-0.5, -0.5], max = [0.5, 0.5], cells = [2, 2], element = "quad4" }
+material = { model = "linear_elastic", youngs_modulus = 1.0e8, poissons_ratio = 0.3, density = 1000.0 }
+initial_angular_velocity = 5.0
+"#;
+
+#[test]
+fn a_small_strain_body_that_turns_is_reported() {
+    let dir = tempdir();
+    let scene = write_scene(dir.path(), "spinning", SPINNING);
+    let path = scene.to_str().unwrap();
+    let out = dir.path().join("small");
+    let o = run_in(dir.path(), &["run", path, "--out", out.to_str().unwrap()]);
+    assert_success(&o);
+    let warnings = summary(&out)["warnings"].to_string();
+    assert!(
+        warnings.contains("body `plate` turned") && warnings.contains("hypoelastic"),
+        "{warnings}"
+    );
+    let out = dir.path().join("large");
+    let o = run_in(
+        dir.path(),
+        &[
+            "run",
+            path,
+            "--out",
+            out.to_str().unwrap(),
+            "--set",
+            "bodies.0.material.model = \"hypoelastic\"",
+        ],
+    );
+    assert_success(&o);
+    let warnings = summary(&out)["warnings"].to_string();
+    assert!(!warnings.contains("turned"), "{warnings}");
+}
