@@ -1,0 +1,356 @@
+//! The element kernel: the one place where a cell is integrated.
+
+use nalgebra::{SMatrix, SVector};
+
+use super::{for_lower_pairs, BodyIntegration, KernelFields, MAX_DOFS};
+use crate::dim::{Dim, SpatialDim, Voigt};
+use crate::element::{ElementKind, MAX_NODES};
+use crate::material::PointKinematics;
+
+/// What the element kernel writes for one cell; each output is optional.
+#[derive(Default)]
+pub(super) struct CellOutput<'a> {
+    /// The cell's history at the start of the step (quadrature point after point).
+    pub(super) history: &'a [f64],
+    /// Where the cell's new history goes.
+    pub(super) new_history: Option<&'a mut [f64]>,
+    /// Tangent values (lower triangle, canonical order).
+    pub(super) tangent: Option<&'a mut [f64]>,
+    /// Consistent mass values (lower triangle, canonical order).
+    pub(super) mass: Option<&'a mut [f64]>,
+    /// Internal forces on the cell's dofs (`nodes * D`).
+    pub(super) force: Option<&'a mut [f64]>,
+    /// The part of `force` from the stiffness-proportional damping of updated-Lagrangian
+    /// bodies.
+    pub(super) damping_force: Option<&'a mut [f64]>,
+    /// Volume-averaged stress.
+    pub(super) stress: Option<&'a mut Voigt>,
+    /// Stored energy [J].
+    pub(super) energy: Option<&'a mut f64>,
+}
+
+/// The element kernel, the one place where a cell is integrated: at every quadrature point the
+/// law is evaluated on the strain and strain rate of `fields`, and the tangent
+/// `int B^T (w_0 dsigma/deps + w_1 dsigma/deps_dot) B`, the mass `int rho N N`, the internal
+/// forces `int B^T sigma`, the mean stress and the stored energy are accumulated as requested.
+#[allow(non_snake_case)]
+pub(super) fn cell_kernel<const D: usize>(
+    kind: ElementKind,
+    cell: &[usize],
+    x: &[SVector<f64, D>],
+    body: &BodyIntegration,
+    fields: &KernelFields<'_>,
+    out: CellOutput<'_>,
+) where
+    Dim<D>: SpatialDim<D>,
+{
+    let n = kind.nodes();
+    let m = n * D;
+    let density = body.density;
+    let per_point = body.law.history_len();
+    let mut out = out;
+    let mut new_history = out.new_history.take();
+    let mut scratch = vec![0.0; if new_history.is_none() { per_point } else { 0 }];
+    let want_tangent = out.tangent.is_some();
+    let want_mass = out.mass.is_some();
+    let mut K = [[0.0f64; MAX_DOFS]; MAX_DOFS];
+    let mut M = [[0.0f64; MAX_NODES]; MAX_NODES];
+    let mut force = [0.0f64; MAX_DOFS];
+    let mut stress_sum = Voigt::zeros();
+    let mut stress_weight = 0.0;
+    let mut energy = 0.0;
+    let mut b = [SMatrix::<f64, 6, D>::zeros(); MAX_NODES];
+    let node_value = |values: &[f64], node: usize| {
+        SVector::<f64, D>::from_column_slice(&values[node * D..node * D + D])
+    };
+    // Updated-Lagrangian laws integrate on the configuration at t_alpha, reached from the
+    // one at t0 (their reference) by the increment u_alpha - u0.
+    let updated = body.law.updated_lagrangian();
+    let zero = SVector::<f64, D>::zeros();
+    let field = |values: Option<&[f64]>, node: usize| values.map_or(zero, |u| node_value(u, node));
+    let start = fields.start.or(fields.displacement);
+    let end = fields.end.or(fields.displacement);
+    let mut x_local = [zero; MAX_NODES];
+    let mut du_alpha = [zero; MAX_NODES];
+    let mut du_end = [zero; MAX_NODES];
+    for (a, &node) in cell.iter().enumerate() {
+        x_local[a] = x[node];
+        if updated {
+            let u0 = field(start, node);
+            x_local[a] += u0;
+            du_alpha[a] = field(fields.displacement, node) - u0;
+            du_end[a] = field(end, node) - u0;
+        }
+    }
+    for (iq, q) in kind.quadrature().iter().enumerate() {
+        let (shape, mut grads, mut position, det) = local_gradients::<D>(kind, &x_local[..n], q.xi);
+        let mut dv = q.weight * det * <Dim<D>>::measure_factor(body.kinematics, &position);
+        let mut increment = nalgebra::Matrix3::<f64>::zeros();
+        let mut end_increment = nalgebra::Matrix3::<f64>::zeros();
+        if updated {
+            for a in 0..n {
+                let (na, ga, r) = (shape[a], &grads[a], position[0]);
+                increment += <Dim<D>>::gradient_3d(body.kinematics, na, ga, r, &du_alpha[a]);
+                end_increment += <Dim<D>>::gradient_3d(body.kinematics, na, ga, r, &du_end[a]);
+            }
+            // To t_alpha: gradients F^-T grad0, volume det F dV0 (the hoop stretch r/r0
+            // included), position moved.
+            let f = SMatrix::<f64, D, D>::identity() + <Dim<D>>::in_plane_block(&increment);
+            let f_inv = <Dim<D>>::inverse(&f).unwrap_or_else(SMatrix::zeros);
+            dv *= (nalgebra::Matrix3::identity() + increment).determinant();
+            for a in 0..n {
+                grads[a] = f_inv.transpose() * grads[a];
+                position += du_alpha[a] * shape[a];
+            }
+        }
+        let points = iq * per_point..(iq + 1) * per_point;
+        let history = out.history.get(points.clone()).unwrap_or(&[]);
+        let new_point_history = match new_history.as_deref_mut() {
+            Some(h) => &mut h[points],
+            None => &mut scratch[..],
+        };
+        let mut strain = Voigt::zeros();
+        let mut strain_rate = Voigt::zeros();
+        let mut spin = nalgebra::Matrix3::<f64>::zeros();
+        for (a, &node) in cell.iter().enumerate() {
+            b[a] = <Dim<D>>::strain_operator(body.kinematics, shape[a], &grads[a], position[0]);
+            if let (Some(u), false) = (fields.displacement, updated) {
+                strain += b[a] * node_value(u, node);
+            }
+            if let Some(v) = fields.velocity {
+                let va = node_value(v, node);
+                strain_rate += b[a] * va;
+                // The skew part of grad v (in-plane in 2D; the hoop direction has no spin).
+                for i in 0..D {
+                    for j in 0..D {
+                        spin[(i, j)] += 0.5 * (va[i] * grads[a][j] - va[j] * grads[a][i]);
+                    }
+                }
+            }
+        }
+        let response = body.law.evaluate(
+            &PointKinematics {
+                kinematics: body.kinematics,
+                strain,
+                strain_rate,
+                spin,
+                time_step: fields.time_step,
+                alpha: fields.alpha,
+                increment,
+                end_increment,
+            },
+            history,
+            new_point_history,
+        );
+        // Stiffness-proportional damping of updated-Lagrangian bodies: b E D.
+        let damping = body.stiffness_damping;
+        let damping_stress = if updated && damping > 0.0 {
+            response.stiffness * strain_rate * damping
+        } else {
+            Voigt::zeros()
+        };
+        if want_tangent {
+            let (w0, w1) = fields.weights;
+            let viscosity = if updated && damping > 0.0 {
+                response.viscosity + response.stiffness * damping
+            } else {
+                response.viscosity
+            };
+            let tangent = if w1 == 0.0 {
+                response.stiffness * w0
+            } else {
+                response.stiffness * w0 + viscosity * w1
+            };
+            // K is symmetric for symmetric laws: compute the blocks (bb, a) with bb >= a and
+            // mirror them after.
+            for a in 0..n {
+                let cb = tangent * b[a] * dv;
+                for bb in a..n {
+                    let kab = b[bb].transpose() * cb; // (D x 6)(6 x D): block (bb, a)
+                    for i in 0..D {
+                        for j in 0..D {
+                            K[bb * D + i][a * D + j] += kab[(i, j)];
+                        }
+                    }
+                }
+            }
+            if updated {
+                geometric_stiffness::<D>(
+                    body.kinematics,
+                    &shape[..n],
+                    &grads[..n],
+                    position[0],
+                    &response.stress,
+                    fields.weights.0 * dv,
+                    &mut K,
+                );
+            }
+        }
+        if want_mass {
+            for a in 0..n {
+                for bb in a..n {
+                    M[a][bb] += density * shape[a] * shape[bb] * dv;
+                }
+            }
+        }
+        if out.force.is_some() {
+            let total = response.stress + damping_stress;
+            for a in 0..n {
+                let fa = b[a].transpose() * total * dv;
+                for k in 0..D {
+                    force[a * D + k] += fa[k];
+                }
+            }
+        }
+        if let Some(fd) = out.damping_force.as_deref_mut() {
+            for a in 0..n {
+                let fa = b[a].transpose() * damping_stress * dv;
+                for k in 0..D {
+                    fd[a * D + k] += fa[k];
+                }
+            }
+        }
+        // The mean stress is weighted by the plane measure (without the axisymmetric 2 pi r).
+        let w = q.weight * det;
+        stress_sum += response.stress * w;
+        stress_weight += w;
+        energy += response.energy_density * dv;
+    }
+    if let Some(k_out) = out.tangent {
+        for a in 0..n {
+            for bb in a + 1..n {
+                for i in 0..D {
+                    for j in 0..D {
+                        K[a * D + j][bb * D + i] = K[bb * D + i][a * D + j];
+                    }
+                }
+            }
+        }
+        let mut slot = 0;
+        for_lower_pairs::<D>(cell, |p, q| {
+            k_out[slot] = K[p][q];
+            slot += 1;
+        });
+        debug_assert_eq!(slot, m * (m + 1) / 2);
+    }
+    if let Some(m_out) = out.mass {
+        for a in 0..n {
+            for bb in a + 1..n {
+                M[bb][a] = M[a][bb];
+            }
+        }
+        let mut slot = 0;
+        for_lower_pairs::<D>(cell, |p, q| {
+            m_out[slot] = if p % D == q % D { M[p / D][q / D] } else { 0.0 };
+            slot += 1;
+        });
+    }
+    if let Some(f) = out.force {
+        f[..m].copy_from_slice(&force[..m]);
+    }
+    if let Some(s) = out.stress {
+        *s = if stress_weight > 0.0 {
+            stress_sum / stress_weight
+        } else {
+            stress_sum
+        };
+    }
+    if let Some(e) = out.energy {
+        *e = energy;
+    }
+}
+
+/// Shape values, spatial gradients, position and Jacobian determinant at a reference point.
+pub fn spatial_gradients<const D: usize>(
+    kind: ElementKind,
+    cell: &[usize],
+    x: &[SVector<f64, D>],
+    xi: [f64; 3],
+) -> (
+    [f64; MAX_NODES],
+    [SVector<f64, D>; MAX_NODES],
+    SVector<f64, D>,
+    f64,
+)
+where
+    Dim<D>: SpatialDim<D>,
+{
+    let mut local = [SVector::<f64, D>::zeros(); MAX_NODES];
+    for (a, &node) in cell.iter().enumerate() {
+        local[a] = x[node];
+    }
+    local_gradients::<D>(kind, &local[..cell.len()], xi)
+}
+
+/// [`spatial_gradients`] on the cell's own node positions `x` (in cell order).
+fn local_gradients<const D: usize>(
+    kind: ElementKind,
+    x: &[SVector<f64, D>],
+    xi: [f64; 3],
+) -> (
+    [f64; MAX_NODES],
+    [SVector<f64, D>; MAX_NODES],
+    SVector<f64, D>,
+    f64,
+)
+where
+    Dim<D>: SpatialDim<D>,
+{
+    let s = kind.shape(xi);
+    let mut jac = SMatrix::<f64, D, D>::zeros();
+    let mut position = SVector::<f64, D>::zeros();
+    for (a, xa) in x.iter().enumerate() {
+        position += xa * s.n[a];
+        for k in 0..D {
+            jac.column_mut(k).axpy(s.dn[a][k], xa, 1.0);
+        }
+    }
+    let det = <Dim<D>>::det(&jac);
+    let inv = <Dim<D>>::inverse(&jac).unwrap_or_else(SMatrix::zeros);
+    let mut grads = [SVector::<f64, D>::zeros(); MAX_NODES];
+    for a in 0..x.len() {
+        let mut dxi = SVector::<f64, D>::zeros();
+        for k in 0..D {
+            dxi[k] = s.dn[a][k];
+        }
+        // dN/dx = J^-T dN/dxi, with J_ik = dx_i/dxi_k.
+        grads[a] = inv.transpose() * dxi;
+    }
+    (s.n, grads, position, det)
+}
+
+/// Adds the geometric (initial-stress) stiffness `weight int grad(dv_a) : (grad(dv_b) sigma)`
+/// of one quadrature point to the blocks (b, a), b >= a, of `k`: the variation of the forces
+/// `int B^T sigma dV` through the configuration, at fixed stress (the stress's own variation
+/// is the material part; the Jaumann and volume terms, of the order of the stress, are left
+/// out, which keeps the tangent symmetric).
+fn geometric_stiffness<const D: usize>(
+    kinematics: crate::dim::Kinematics,
+    shape: &[f64],
+    grads: &[SVector<f64, D>],
+    r: f64,
+    stress: &Voigt,
+    weight: f64,
+    k: &mut [[f64; MAX_DOFS]; MAX_DOFS],
+) where
+    Dim<D>: SpatialDim<D>,
+{
+    let sigma = crate::material::stress_tensor(stress);
+    // The gradient of a unit displacement e_i of node a.
+    let unit = |a: usize, i: usize| {
+        let mut e = SVector::<f64, D>::zeros();
+        e[i] = 1.0;
+        <Dim<D>>::gradient_3d(kinematics, shape[a], &grads[a], r, &e)
+    };
+    for a in 0..shape.len() {
+        for j in 0..D {
+            let ha = unit(a, j) * sigma;
+            for bb in a..shape.len() {
+                for i in 0..D {
+                    let hb = unit(bb, i);
+                    k[bb * D + i][a * D + j] += weight * hb.component_mul(&ha).sum();
+                }
+            }
+        }
+    }
+}
