@@ -20,8 +20,8 @@ pub(super) struct CellOutput<'a> {
     pub(super) mass: Option<&'a mut [f64]>,
     /// Internal forces on the cell's dofs (`nodes * D`).
     pub(super) force: Option<&'a mut [f64]>,
-    /// The part of `force` from the stiffness-proportional damping of updated-Lagrangian
-    /// bodies.
+    /// The part of `force` that dissipates (stiffness damping of updated-Lagrangian bodies,
+    /// the whole stress of flow laws).
     pub(super) damping_force: Option<&'a mut [f64]>,
     /// Volume-averaged stress.
     pub(super) stress: Option<&'a mut Voigt>,
@@ -59,7 +59,6 @@ pub(super) fn cell_kernel<const D: usize>(
     let mut stress_sum = Voigt::zeros();
     let mut stress_weight = 0.0;
     let mut energy = 0.0;
-    let mut b = [SMatrix::<f64, 6, D>::zeros(); MAX_NODES];
     let node_value = |values: &[f64], node: usize| {
         SVector::<f64, D>::from_column_slice(&values[node * D..node * D + D])
     };
@@ -82,7 +81,11 @@ pub(super) fn cell_kernel<const D: usize>(
             du_end[a] = field(end, node) - u0;
         }
     }
-    for (iq, q) in kind.quadrature().iter().enumerate() {
+    let mut inverted = false;
+    // Pass 1: every quadrature point's geometry and strain operators.
+    let rule = kind.quadrature();
+    let mut points = [PointGeometry::<D>::default(); MAX_POINTS];
+    for (iq, q) in rule.iter().enumerate() {
         let (shape, mut grads, mut position, det) = local_gradients::<D>(kind, &x_local[..n], q.xi);
         let mut dv = q.weight * det * <Dim<D>>::measure_factor(body.kinematics, &position);
         let mut increment = nalgebra::Matrix3::<f64>::zeros();
@@ -97,12 +100,48 @@ pub(super) fn cell_kernel<const D: usize>(
             // included), position moved.
             let f = SMatrix::<f64, D, D>::identity() + <Dim<D>>::in_plane_block(&increment);
             let f_inv = <Dim<D>>::inverse(&f).unwrap_or_else(SMatrix::zeros);
-            dv *= (nalgebra::Matrix3::identity() + increment).determinant();
+            let jacobian = (nalgebra::Matrix3::identity() + increment).determinant();
+            if !(jacobian > 0.0) {
+                // An inverted cell: the energy says so (NaN), and Newton backs off.
+                inverted = true;
+            }
+            dv *= jacobian;
             for a in 0..n {
                 grads[a] = f_inv.transpose() * grads[a];
                 position += du_alpha[a] * shape[a];
             }
         }
+        let point = &mut points[iq];
+        for a in 0..n {
+            point.b[a] =
+                <Dim<D>>::strain_operator(body.kinematics, shape[a], &grads[a], position[0]);
+        }
+        point.shape = shape;
+        point.grads = grads;
+        point.position = position;
+        point.dv = dv;
+        point.plane_weight = q.weight * det;
+        point.increment = increment;
+        point.end_increment = end_increment;
+    }
+    // B-bar: the volumetric part of every strain operator replaced by its cell average, for
+    // laws that need it on the elements whose full integration locks (Quad4, Hex8).
+    if body.law.volumetric_average() && matches!(kind, ElementKind::Quad4 | ElementKind::Hex8) {
+        average_volumetric::<D>(&mut points[..rule.len()], n);
+    }
+    // Pass 2: the law and the integrals.
+    for (iq, point) in points[..rule.len()].iter().enumerate() {
+        let PointGeometry {
+            shape,
+            grads,
+            position,
+            dv,
+            plane_weight,
+            increment,
+            end_increment,
+            ..
+        } = *point;
+        let b = &point.b;
         let points = iq * per_point..(iq + 1) * per_point;
         let history = out.history.get(points.clone()).unwrap_or(&[]);
         let new_point_history = match new_history.as_deref_mut() {
@@ -113,7 +152,6 @@ pub(super) fn cell_kernel<const D: usize>(
         let mut strain_rate = Voigt::zeros();
         let mut spin = nalgebra::Matrix3::<f64>::zeros();
         for (a, &node) in cell.iter().enumerate() {
-            b[a] = <Dim<D>>::strain_operator(body.kinematics, shape[a], &grads[a], position[0]);
             if let (Some(u), false) = (fields.displacement, updated) {
                 strain += b[a] * node_value(u, node);
             }
@@ -144,6 +182,7 @@ pub(super) fn cell_kernel<const D: usize>(
         );
         // Stiffness-proportional damping of updated-Lagrangian bodies: b E D.
         let damping = body.stiffness_damping;
+        let dissipative = body.law.dissipative();
         let damping_stress = if updated && damping > 0.0 {
             response.stiffness * strain_rate * damping
         } else {
@@ -174,7 +213,10 @@ pub(super) fn cell_kernel<const D: usize>(
                     }
                 }
             }
-            if updated {
+            // Flow laws leave it out: their stress over the step's viscous stiffness is
+            // large where the flow is fast, and the geometric part, negative in compression,
+            // would make the iteration matrix indefinite (the residual stays exact).
+            if updated && !dissipative {
                 geometric_stiffness::<D>(
                     body.kinematics,
                     &shape[..n],
@@ -203,15 +245,21 @@ pub(super) fn cell_kernel<const D: usize>(
             }
         }
         if let Some(fd) = out.damping_force.as_deref_mut() {
+            // A flow law's whole stress dissipates.
+            let dissipating = if dissipative {
+                response.stress + damping_stress
+            } else {
+                damping_stress
+            };
             for a in 0..n {
-                let fa = b[a].transpose() * damping_stress * dv;
+                let fa = b[a].transpose() * dissipating * dv;
                 for k in 0..D {
                     fd[a * D + k] += fa[k];
                 }
             }
         }
         // The mean stress is weighted by the plane measure (without the axisymmetric 2 pi r).
-        let w = q.weight * det;
+        let w = plane_weight;
         stress_sum += response.stress * w;
         stress_weight += w;
         energy += response.energy_density * dv;
@@ -256,7 +304,7 @@ pub(super) fn cell_kernel<const D: usize>(
         };
     }
     if let Some(e) = out.energy {
-        *e = energy;
+        *e = if inverted { f64::NAN } else { energy };
     }
 }
 
@@ -350,6 +398,66 @@ fn geometric_stiffness<const D: usize>(
                     let hb = unit(bb, i);
                     k[bb * D + i][a * D + j] += weight * hb.component_mul(&ha).sum();
                 }
+            }
+        }
+    }
+}
+
+/// Largest number of quadrature points of a cell.
+const MAX_POINTS: usize = 8;
+
+/// One quadrature point's geometry (on the configuration the cell is integrated on).
+#[derive(Clone, Copy)]
+struct PointGeometry<const D: usize> {
+    shape: [f64; MAX_NODES],
+    grads: [SVector<f64, D>; MAX_NODES],
+    position: SVector<f64, D>,
+    /// The integration weight with the Jacobian and the axisymmetric measure [m^3 or m^2].
+    dv: f64,
+    /// The weight in the plane measure (no `2 pi r`), for the mean stress.
+    plane_weight: f64,
+    /// The strain operator of each node.
+    b: [SMatrix<f64, 6, D>; MAX_NODES],
+    increment: nalgebra::Matrix3<f64>,
+    end_increment: nalgebra::Matrix3<f64>,
+}
+
+impl<const D: usize> Default for PointGeometry<D> {
+    fn default() -> Self {
+        PointGeometry {
+            shape: [0.0; MAX_NODES],
+            grads: [SVector::zeros(); MAX_NODES],
+            position: SVector::zeros(),
+            dv: 0.0,
+            plane_weight: 0.0,
+            b: [SMatrix::zeros(); MAX_NODES],
+            increment: nalgebra::Matrix3::zeros(),
+            end_increment: nalgebra::Matrix3::zeros(),
+        }
+    }
+}
+
+/// Hughes' B-bar: at every point, the volumetric strain `(eps_xx + eps_yy + eps_zz)` that each
+/// node's operator produces is replaced by its volume average over the cell, one third on each
+/// normal component, so that a near-incompressible law constrains one volume per cell instead
+/// of one per point (the selective reduced integration of the volumetric term, for any law).
+fn average_volumetric<const D: usize>(points: &mut [PointGeometry<D>], nodes: usize) {
+    let volume: f64 = points.iter().map(|p| p.dv).sum();
+    if !(volume > 0.0) {
+        return;
+    }
+    let divergence = |b: &SMatrix<f64, 6, D>| b.row(0) + b.row(1) + b.row(2);
+    for a in 0..nodes {
+        let mean = points
+            .iter()
+            .map(|p| divergence(&p.b[a]) * p.dv)
+            .fold(nalgebra::RowSVector::<f64, D>::zeros(), |s, r| s + r)
+            / volume;
+        for p in points.iter_mut() {
+            let change = (mean - divergence(&p.b[a])) / 3.0;
+            for row in 0..3 {
+                let updated = p.b[a].row(row) + change;
+                p.b[a].set_row(row, &updated);
             }
         }
     }

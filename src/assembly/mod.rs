@@ -243,7 +243,6 @@ pub struct KernelFields<'a> {
     pub alpha: f64,
 }
 
-
 /// Stiffness and mass matrices of linear bodies, assembled on the reference configuration.
 pub struct LinearMatrices {
     /// Stiffness K [N/m] (lower triangle).
@@ -414,12 +413,13 @@ pub struct Integrated {
     pub forces: Vec<f64>,
     /// Tangent values in the pattern's triplet order, when a pattern was given.
     pub tangent: Option<Vec<f64>>,
-    /// Stored energy [J].
+    /// Stored energy [J]; NaN when a cell of an updated-Lagrangian law is inverted at
+    /// `t_alpha` (its Jacobian is not positive).
     pub energy: f64,
     /// The material history at the end of the step, for these fields.
     pub history: Vec<f64>,
-    /// The part of `forces` from the stiffness-proportional damping of updated-Lagrangian
-    /// bodies [N] (empty when no such body is damped).
+    /// The part of `forces` that dissipates [N]: the stiffness-proportional damping of
+    /// updated-Lagrangian bodies and the whole stress of flow laws (empty without either).
     pub damping_forces: Vec<f64>,
 }
 
@@ -452,7 +452,8 @@ where
         let body = &bodies[seg.body];
         // Damped updated-Lagrangian bodies keep their damping forces apart too, in the
         // second half of each cell's chunk.
-        let damped = body.stiffness_damping > 0.0 && body.law.updated_lagrangian();
+        let damped = (body.stiffness_damping > 0.0 && body.law.updated_lagrangian())
+            || body.law.dissipative();
         let chunk = if damped { 2 * m } else { m };
         if damped && damping_forces.is_empty() {
             damping_forces = vec![0.0; ndof];

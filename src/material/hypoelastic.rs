@@ -249,7 +249,9 @@ mod tests {
             errors.push((invariant_error, back));
         }
         let (hw, series) = (errors[0], errors[1]);
-        eprintln!("first invariant, stress after the turn: Hughes-Winget {hw:?}, series {series:?}");
+        eprintln!(
+            "first invariant, stress after the turn: Hughes-Winget {hw:?}, series {series:?}"
+        );
         // Round-off only: E times the strain increment round-off (1e-16) per step.
         assert!(hw.0 < 1e-10 && hw.1 < 1e-10, "Hughes-Winget {hw:?}");
         // The series is not orthogonal: Q^T Q = I + W^4/4 drifts, but stays small.

@@ -74,6 +74,17 @@ pub trait ConstitutiveLaw: Send + Sync {
         false
     }
 
+    /// Whether the cell's volumetric strain is averaged over Quad4 and Hex8 cells (B-bar):
+    /// laws that are nearly incompressible lock without it.
+    fn volumetric_average(&self) -> bool {
+        false
+    }
+
+    /// Whether the law stores nothing: the work of its stress is dissipated (a flow law).
+    fn dissipative(&self) -> bool {
+        false
+    }
+
     /// The response at one point; writes the history at the end of the step into
     /// `new_history` (`history_len` values) from the one at its start, `history`.
     fn evaluate(

@@ -9,9 +9,11 @@ use serde::{Deserialize, Serialize};
 
 mod hypoelastic;
 mod law;
+mod norton_hoff;
 
 pub use hypoelastic::{from_voigt as stress_tensor, Hypoelastic, RotationUpdate};
 pub use law::{ConstitutiveLaw, PointKinematics, PointResponse};
+pub use norton_hoff::{NortonHoff, DEFAULT_RATE_REGULARIZATION};
 
 use crate::dim::{Kinematics, VoigtMatrix};
 use crate::error::{Error, Result};
@@ -112,6 +114,8 @@ pub enum Material {
     LinearElastic(LinearElastic),
     /// Corotational hypoelasticity (large rotations, small strains; updated Lagrangian).
     Hypoelastic(Hypoelastic),
+    /// Norton-Hoff viscoplastic flow (updated Lagrangian, B-bar on Quad4 and Hex8).
+    NortonHoff(NortonHoff),
 }
 
 impl Material {
@@ -120,6 +124,7 @@ impl Material {
         match self {
             Material::LinearElastic(m) => m.density,
             Material::Hypoelastic(m) => m.density,
+            Material::NortonHoff(m) => m.density,
         }
     }
 
@@ -128,6 +133,7 @@ impl Material {
         match self {
             Material::LinearElastic(m) => m.validate(),
             Material::Hypoelastic(m) => m.validate(),
+            Material::NortonHoff(m) => m.validate(),
         }
     }
 
@@ -136,6 +142,8 @@ impl Material {
         match self {
             Material::LinearElastic(m) => m.wave_speed(kinematics),
             Material::Hypoelastic(m) => m.elastic().wave_speed(kinematics),
+            // A flow has no elastic wave; its volumetric penalty is a viscosity.
+            Material::NortonHoff(_) => f64::INFINITY,
         }
     }
 }
@@ -167,6 +175,7 @@ impl ConstitutiveLaw for Material {
         match self {
             Material::LinearElastic(m) => m.history_len(),
             Material::Hypoelastic(m) => m.history_len(),
+            Material::NortonHoff(m) => m.history_len(),
         }
     }
 
@@ -174,13 +183,23 @@ impl ConstitutiveLaw for Material {
         match self {
             Material::LinearElastic(m) => m.is_linear(),
             Material::Hypoelastic(m) => m.is_linear(),
+            Material::NortonHoff(m) => m.is_linear(),
         }
+    }
+
+    fn volumetric_average(&self) -> bool {
+        matches!(self, Material::NortonHoff(_))
+    }
+
+    fn dissipative(&self) -> bool {
+        matches!(self, Material::NortonHoff(_))
     }
 
     fn updated_lagrangian(&self) -> bool {
         match self {
             Material::LinearElastic(m) => m.updated_lagrangian(),
             Material::Hypoelastic(m) => m.updated_lagrangian(),
+            Material::NortonHoff(m) => m.updated_lagrangian(),
         }
     }
 
@@ -193,6 +212,7 @@ impl ConstitutiveLaw for Material {
         match self {
             Material::LinearElastic(m) => m.evaluate(point, history, new_history),
             Material::Hypoelastic(m) => m.evaluate(point, history, new_history),
+            Material::NortonHoff(m) => m.evaluate(point, history, new_history),
         }
     }
 }

@@ -148,7 +148,12 @@ where
             Some(s) => s.cholesky,
             None => SparseCholesky::analyse_with(&matrix, self.model.settings.ordering, D)?,
         };
-        cholesky.factor(&matrix, self.state.step + 1)?;
+        // The general path factors its own matrix every iteration and needs only this one's
+        // analysis: a flow law at rest with no mass (rho = 0) has nothing to factor here.
+        let factored = cholesky.factor(&matrix, self.state.step + 1);
+        if !self.general_path {
+            factored?;
+        }
         let diagonal = diagonal_of(&matrix);
         self.caches.system = Some(IterationSystem {
             time_step: h,
@@ -340,15 +345,33 @@ where
         );
         let mass = self.matrices.mass.val();
         let alpha = self.model.settings.scheme.alpha;
-        let scale = self.system().diagonal.iter().sum::<f64>() / b.len().max(1) as f64;
         let vals = base.val_mut();
         for j in 0..col_ptr.len() - 1 {
             for k in col_ptr[j]..col_ptr[j + 1] {
-                let i = row_idx[k];
                 vals[k] += mass[k] / h;
                 if let Some(c) = &self.damping {
                     vals[k] += alpha * c.val()[k];
                 }
+            }
+        }
+        // Prescribed rows and columns: the identity scaled to this matrix's mean diagonal.
+        let (mut sum, mut count) = (0.0, 0usize);
+        for j in 0..col_ptr.len() - 1 {
+            for k in col_ptr[j]..col_ptr[j + 1] {
+                if row_idx[k] == j && self.prescribed[j].is_none() {
+                    sum += vals[k];
+                    count += 1;
+                }
+            }
+        }
+        let scale = if count > 0 && sum > 0.0 {
+            sum / count as f64
+        } else {
+            1.0
+        };
+        for j in 0..col_ptr.len() - 1 {
+            for k in col_ptr[j]..col_ptr[j + 1] {
+                let i = row_idx[k];
                 if self.prescribed[i].is_some() || self.prescribed[j].is_some() {
                     vals[k] = if i == j { scale } else { 0.0 };
                 }

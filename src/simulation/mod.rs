@@ -326,6 +326,16 @@ where
                     &format!("{} component(s)", <Dim<D>>::ANGULAR),
                 ));
             }
+            if settings.kinematics == Kinematics::PlaneStress
+                && matches!(body.material, crate::material::Material::NortonHoff(_))
+            {
+                return Err(invalid(
+                    "kinematics",
+                    "plane_stress with the norton_hoff material",
+                    "plane_strain, axisymmetric or 3D (an incompressible flow in plane stress \
+                     would need its thickness as an unknown)",
+                ));
+            }
             if settings.kinematics == Kinematics::Axisymmetric {
                 if let Some(n) = body.mesh.nodes.iter().position(|x| x[0] < -1e-12) {
                     return Err(Error::Mesh {

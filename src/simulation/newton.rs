@@ -22,6 +22,8 @@ use crate::friction::{threshold_change, ThresholdSample};
 
 /// Halvings of a Newton increment while the residual grows.
 const MAX_BACKTRACKS: usize = 4;
+/// Halvings of a Newton increment that turned a cell inside out (1e-6 of it at most).
+const MAX_INVERSION_BACKTRACKS: usize = 20;
 
 /// Most slipping Coulomb contacts whose threshold-to-gap coupling enters the Newton solve
 /// (one extra symmetric solve each); beyond, Newton goes on without it (quasi-Newton).
@@ -324,6 +326,25 @@ where
                     &self.state.material_history,
                     ndof,
                 );
+                if integrated.energy.is_nan() {
+                    // A cell turned inside out at this iterate: back off along the last
+                    // increment, or give up on the step (the step is cut).
+                    if !last_increment.is_empty() && backtracks < MAX_INVERSION_BACKTRACKS {
+                        for i in 0..ndof {
+                            last_increment[i] *= 0.5;
+                            v1[i] -= last_increment[i];
+                        }
+                        backtracks += 1;
+                        continue;
+                    }
+                    return Err(Error::Unstable {
+                        step,
+                        time: t0 + h,
+                        detail: "a cell of an updated-Lagrangian body turned inside out (its \
+                                 Jacobian is not positive at t_alpha)"
+                            .into(),
+                    });
+                }
                 tangent_values = integrated.tangent.unwrap_or_default();
                 material_history = integrated.history;
                 kernel_damping_forces = integrated.damping_forces;

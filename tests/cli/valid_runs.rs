@@ -517,20 +517,6 @@ fn announced_features_are_refused_cleanly() {
     assert!(err.contains("--checkpoint-every is not available"), "{err}");
     let err = assert_invalid(&work, &["resume", "out/tiny/checkpoints/step_10.ckpt"]);
     assert!(err.contains("resume is not available"), "{err}");
-    let err = assert_invalid(
-        &work,
-        &[
-            "run",
-            path,
-            "--set",
-            "bodies.0.material = { model = \"norton_hoff\", consistency = 1.0e6, \
-             exponent = 0.2, density = 1000.0, bulk_penalty = 1.0e9 }",
-        ],
-    );
-    assert!(
-        err.contains("norton_hoff material is not available"),
-        "{err}"
-    );
 }
 
 // ---------------------------------------------------------------------------------------------

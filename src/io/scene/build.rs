@@ -14,7 +14,7 @@ use crate::contact::resolution::DEFAULT_REGULARIZATION;
 use crate::contact::{ContactMethod, ContactSettings, FrictionLaw, GapDisplacement};
 use crate::dim::{Dim, Kinematics, SpatialDim};
 use crate::error::{Error, Result};
-use crate::material::{Hypoelastic, LinearElastic, Material, RotationUpdate};
+use crate::material::{Hypoelastic, LinearElastic, Material, NortonHoff, RotationUpdate};
 use crate::mesh::Mesh;
 use crate::simulation::{Body, Constraint, MassKind, Settings};
 use crate::solver::FillOrdering;
@@ -396,10 +396,21 @@ impl LoadedScene {
                 LinearElastic::new(youngs_modulus, poissons_ratio, density)
             };
         match m {
-            MaterialSpec::LinearElastic { youngs_modulus, poissons_ratio, density } => {
-                Ok(Material::LinearElastic(elastic(*youngs_modulus, *poissons_ratio, *density)?))
-            }
-            MaterialSpec::Hypoelastic { youngs_modulus, poissons_ratio, density, rotation } => {
+            MaterialSpec::LinearElastic {
+                youngs_modulus,
+                poissons_ratio,
+                density,
+            } => Ok(Material::LinearElastic(elastic(
+                *youngs_modulus,
+                *poissons_ratio,
+                *density,
+            )?)),
+            MaterialSpec::Hypoelastic {
+                youngs_modulus,
+                poissons_ratio,
+                density,
+                rotation,
+            } => {
                 let e = elastic(*youngs_modulus, *poissons_ratio, *density)?;
                 let rotation = match rotation.as_deref() {
                     None | Some("hughes_winget") => RotationUpdate::HughesWinget,
@@ -412,12 +423,37 @@ impl LoadedScene {
                         ))
                     }
                 };
-                Ok(Material::Hypoelastic(Hypoelastic::new(e.youngs_modulus, e.poissons_ratio, e.density, rotation)?))
+                Ok(Material::Hypoelastic(Hypoelastic::new(
+                    e.youngs_modulus,
+                    e.poissons_ratio,
+                    e.density,
+                    rotation,
+                )?))
             }
-            MaterialSpec::NortonHoff { .. } => Err(Error::NotAvailable {
-                feature: format!("{}: the norton_hoff material", self.path.display()),
-                detail: format!("`{key}.model` is accepted by the parser, but only \"linear_elastic\" and \"hypoelastic\" run in this version"),
-            }),
+            MaterialSpec::NortonHoff {
+                consistency,
+                exponent,
+                density,
+                bulk_penalty,
+                rate_regularization,
+            } => {
+                self.positive(&format!("{key}.consistency"), *consistency, "Pa s^m")?;
+                if !(*exponent > 0.0 && *exponent <= 1.0) {
+                    return Err(self.error(
+                        &format!("{key}.exponent"),
+                        exponent,
+                        "a value in (0, 1]",
+                    ));
+                }
+                self.non_negative(&format!("{key}.density"), *density, "kg/m^3")?;
+                self.positive(&format!("{key}.bulk_penalty"), *bulk_penalty, "Pa s")?;
+                let mut law = NortonHoff::new(*consistency, *exponent, *density, *bulk_penalty)?;
+                if let Some(r) = rate_regularization {
+                    self.positive(&format!("{key}.rate_regularization"), *r, "1/s")?;
+                    law.rate_regularization = *r;
+                }
+                Ok(Material::NortonHoff(law))
+            }
         }
     }
 

@@ -199,7 +199,7 @@ pub struct MeshSpec {
 }
 
 /// `material = { model = ..., ... }`.
-// Not `Material`: the scene parses norton_hoff, announced but not in it yet.
+// Not `Material`: as written (optional keys, strings), validated into `Material` by the builder.
 #[derive(Debug, Clone, Deserialize)]
 #[serde(tag = "model", rename_all = "snake_case", deny_unknown_fields)]
 pub enum MaterialSpec {
@@ -234,6 +234,9 @@ pub enum MaterialSpec {
         density: f64,
         /// Volumetric penalty [Pa s].
         bulk_penalty: f64,
+        /// Regularisation of the equivalent strain rate [1/s].
+        #[serde(default)]
+        rate_regularization: Option<f64>,
     },
 }
 
