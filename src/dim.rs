@@ -2,10 +2,10 @@
 //!
 //! Everything in softway is generic over `const D: usize` with the single bound
 //! `where Dim<D>: SpatialDim<D>`. Determinants, inverses, facet normals, the embedding of a
-//! D-dimensional gradient in the 3D strain of the material law and the angular velocity all
-//! live here, implemented for `Dim<2>` and `Dim<3>` only (the trait is sealed).
+//! D-dimensional gradient in the 3D strain of the material law, angular velocities and
+//! rotations all live here, implemented for `Dim<2>` and `Dim<3>` only (the trait is sealed).
 
-use nalgebra::{Matrix2, Matrix3, SMatrix, SVector, Vector2, Vector3};
+use nalgebra::{Matrix2, Matrix3, Rotation2, Rotation3, SMatrix, SVector, Vector2, Vector3};
 use serde::{Deserialize, Serialize};
 
 /// A 6-component Voigt vector: `[xx, yy, zz, yz, xz, xy]`; strains carry engineering shears
@@ -46,6 +46,10 @@ pub trait SpatialDim<const D: usize>:
     /// Number of angular velocity components (1 in 2D, 3 in 3D).
     const ANGULAR: usize;
 
+    /// Number of values that store a rotation (an obstacle's pose in the state): the angle
+    /// [rad] in 2D, the rotation matrix's 9 entries (column-major) in 3D.
+    const ROTATION: usize;
+
     /// Determinant of a D x D matrix.
     fn det(m: &SMatrix<f64, D, D>) -> f64;
 
@@ -59,6 +63,19 @@ pub trait SpatialDim<const D: usize>:
 
     /// The velocity `omega x r` of a rigid spin; `omega` has [`SpatialDim::ANGULAR`] components.
     fn spin_velocity(omega: &[f64], r: &SVector<f64, D>) -> SVector<f64, D>;
+
+    /// The rotation matrix of [`SpatialDim::ROTATION`] stored values.
+    fn rotation_matrix(stored: &[f64]) -> SMatrix<f64, D, D>;
+
+    /// The stored values of a rotation matrix.
+    fn rotation_values(r: &SMatrix<f64, D, D>) -> Vec<f64>;
+
+    /// The stored rotation `stored` followed by the turn `exp(turn)` (`turn`: a rotation vector,
+    /// angular velocity times time, [`SpatialDim::ANGULAR`] components). 2D angles add exactly.
+    fn turned(stored: &[f64], turn: &[f64]) -> Vec<f64>;
+
+    /// The rotation vector of the turn `a` followed by the turn `b` (`log(exp(b) exp(a))`).
+    fn compose_turns(a: &[f64], b: &[f64]) -> Vec<f64>;
 
     /// The strain-rate operator of one node: maps the node's velocity to the Voigt strain rate,
     /// given the shape function value `n`, its spatial gradient `grad` and the radius `r`
@@ -97,6 +114,7 @@ pub trait SpatialDim<const D: usize>:
 
 impl SpatialDim<2> for Dim<2> {
     const ANGULAR: usize = 1;
+    const ROTATION: usize = 1;
 
     fn det(m: &Matrix2<f64>) -> f64 {
         m.determinant()
@@ -118,6 +136,22 @@ impl SpatialDim<2> for Dim<2> {
 
     fn spin_velocity(omega: &[f64], r: &Vector2<f64>) -> Vector2<f64> {
         omega[0] * Vector2::new(-r.y, r.x)
+    }
+
+    fn rotation_matrix(stored: &[f64]) -> Matrix2<f64> {
+        Rotation2::new(stored[0]).into_inner()
+    }
+
+    fn rotation_values(r: &Matrix2<f64>) -> Vec<f64> {
+        vec![r[(1, 0)].atan2(r[(0, 0)])]
+    }
+
+    fn turned(stored: &[f64], turn: &[f64]) -> Vec<f64> {
+        vec![stored[0] + turn[0]]
+    }
+
+    fn compose_turns(a: &[f64], b: &[f64]) -> Vec<f64> {
+        vec![a[0] + b[0]]
     }
 
     fn strain_operator(
@@ -176,6 +210,7 @@ impl SpatialDim<2> for Dim<2> {
 
 impl SpatialDim<3> for Dim<3> {
     const ANGULAR: usize = 3;
+    const ROTATION: usize = 9;
 
     fn det(m: &Matrix3<f64>) -> f64 {
         m.determinant()
@@ -196,6 +231,33 @@ impl SpatialDim<3> for Dim<3> {
 
     fn spin_velocity(omega: &[f64], r: &Vector3<f64>) -> Vector3<f64> {
         Vector3::new(omega[0], omega[1], omega[2]).cross(r)
+    }
+
+    fn rotation_matrix(stored: &[f64]) -> Matrix3<f64> {
+        Matrix3::from_column_slice(stored)
+    }
+
+    fn rotation_values(r: &Matrix3<f64>) -> Vec<f64> {
+        r.as_slice().to_vec()
+    }
+
+    fn turned(stored: &[f64], turn: &[f64]) -> Vec<f64> {
+        let r =
+            Rotation3::new(Vector3::from_column_slice(turn)) * Matrix3::from_column_slice(stored);
+        r.as_slice().to_vec()
+    }
+
+    fn compose_turns(a: &[f64], b: &[f64]) -> Vec<f64> {
+        // No round-off through exp and log when one of them does not turn.
+        if a.iter().all(|x| *x == 0.0) {
+            return b.to_vec();
+        }
+        if b.iter().all(|x| *x == 0.0) {
+            return a.to_vec();
+        }
+        let (a, b) = (Vector3::from_column_slice(a), Vector3::from_column_slice(b));
+        let r = Rotation3::new(b) * Rotation3::new(a);
+        r.scaled_axis().as_slice().to_vec()
     }
 
     fn strain_operator(

@@ -98,10 +98,16 @@ where
     assert!(err.contains("motion.1.until"), "{err}");
     let infinite = vec![piece::<D>(f64::INFINITY, [0.0; 3])];
     assert!(build(infinite).is_err());
-    let mut turning = piece::<D>(0.5, [0.0; 3]);
-    turning.angular_velocity = vec![0.5; <Dim<D>>::ANGULAR];
-    let err = build(vec![turning]).err().expect("refused").to_string();
-    assert!(err.contains("angular_velocity"), "{err}");
+    // Angular velocities need 1 (2D) or 3 (3D) finite components.
+    for omega in [
+        vec![0.5; <Dim<D>>::ANGULAR + 1],
+        vec![f64::NAN; <Dim<D>>::ANGULAR],
+    ] {
+        let mut turning = piece::<D>(0.5, [0.0; 3]);
+        turning.angular_velocity = omega;
+        let err = build(vec![turning]).err().expect("refused").to_string();
+        assert!(err.contains("motion.0.angular_velocity"), "{err}");
+    }
 }
 
 fn a_plate_driven_down_then_held_compresses_a_block<const D: usize>()

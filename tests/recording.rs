@@ -285,3 +285,59 @@ fn a_disabled_stream_records_nothing() {
     assert_eq!(recorder.iterations(), 0);
     recorder.finish().unwrap();
 }
+
+/// Obstacles that move (a velocity, a motion schedule, turning or not) are drawn every step in
+/// the simulation's pose; a fixed one once, static.
+#[test]
+fn moving_and_turning_obstacles_are_drawn_every_step() {
+    use softway::contact::MotionSegment;
+    let plane = |name: &str, y: f64| {
+        Obstacle::new(
+            name,
+            ObstacleShape::Halfspace {
+                point: Vector2::new(0.5, y),
+                normal: Vector2::new(0.0, 1.0),
+            },
+        )
+    };
+    let obstacles = vec![
+        plane("fixed", -1.0),
+        plane("tilting", -2.0).with_motion(vec![MotionSegment {
+            until: 1.0,
+            velocity: Vector2::zeros(),
+            angular_velocity: vec![0.5],
+        }]),
+        plane("lifted", -3.0).with_motion(vec![MotionSegment {
+            until: 1.0,
+            velocity: Vector2::new(0.0, 0.1),
+            angular_velocity: Vec::new(),
+        }]),
+    ];
+    let mut builder = Simulation2::builder().time_step(1e-4).body(Body::new(
+        "beam",
+        rectangle(
+            Vector2::new(0.0, 0.0),
+            Vector2::new(1.0, 0.1),
+            [4, 1],
+            ElementKind::Quad4,
+        )
+        .unwrap(),
+        steel(),
+    ));
+    for o in &obstacles {
+        builder = builder.obstacle(o.clone());
+    }
+    let mut sim = builder.build().unwrap();
+    let (recorder, memory) = RerunRecorder::<2>::to_memory().unwrap();
+    let mut recorder = recorder.with_obstacles(&obstacles);
+    run(&mut sim, 3, &mut recorder);
+    recorder.flush().unwrap();
+    assert!(recorder.error().is_none(), "{:?}", recorder.error());
+    let rows = rows(&memory);
+    assert_eq!(rows["obstacles/fixed"].static_rows, 1);
+    assert_eq!(rows["obstacles/fixed"].temporal, 0);
+    for moving in ["obstacles/tilting", "obstacles/lifted"] {
+        assert_eq!(rows[moving].temporal, 3, "{moving}: {rows:?}");
+        assert_eq!(rows[moving].static_rows, 0, "{moving}");
+    }
+}

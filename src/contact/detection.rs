@@ -6,8 +6,8 @@
 //! * **Broad phase** ([`Detector::update_candidates`]): each facet's box swept over the step (its
 //!   nodes at `x0` and `x1`, grown by [`DetectionOptions::margin`]) sits in a bounding-volume
 //!   hierarchy built once and refitted per call; each slave's segment `x0 -> x1` is tested
-//!   against it and against every obstacle's region swept between its translations at t0 and
-//!   t1. A node that travels several thicknesses of a body within one step still meets the
+//!   against it and against every obstacle's region swept between its poses at t0 and t1
+//!   (translation, and rotation about its pivot). A node that travels several thicknesses of a body within one step still meets the
 //!   facets it crosses; one that goes through a whole body (ends beyond its far face) is seen
 //!   outside at the end of the step: step control must prevent that.
 //! * **Narrow phase** ([`Detector::pairs`]): for each slave and each master body (or obstacle)
@@ -23,9 +23,9 @@
 
 use std::collections::HashMap;
 
-use nalgebra::SVector;
+use nalgebra::{SMatrix, SVector};
 
-use crate::contact::gap::{analytic_obstacle_gap, point_gap};
+use crate::contact::gap::{point_gap, posed_obstacle_gap};
 use crate::contact::obstacle::{Obstacle, ObstacleShape};
 use crate::contact::{ContactKey, MasterId};
 use crate::dim::{Dim, SpatialDim};
@@ -460,7 +460,7 @@ where
     }
 
     /// (Re)builds the hierarchies of the facet obstacles whose sizes changed. Obstacle shapes
-    /// are rigid: only their translation may change between calls.
+    /// are rigid: only their pose may change between calls.
     fn sync_obstacles(&mut self, obstacles: &[Obstacle<D>]) {
         self.obstacle_facets.resize_with(obstacles.len(), || None);
         for (k, o) in obstacles.iter().enumerate() {
@@ -491,15 +491,56 @@ where
         obstacles: &[Obstacle<D>],
         obstacle_translation_t1: &[SVector<f64, D>],
     ) {
-        let n = self.surface.node_count();
-        assert!(
-            x0.len() >= n && x1.len() >= n,
-            "positions shorter than the surface's nodes"
-        );
         assert_eq!(
             obstacles.len(),
             obstacle_translation_t1.len(),
             "one t1 translation per obstacle"
+        );
+        let poses: Vec<_> = obstacles
+            .iter()
+            .zip(obstacle_translation_t1)
+            .map(|(o, t)| (*t, o.rotation))
+            .collect();
+        self.candidates_over_step(x0, x1, obstacles, &poses);
+    }
+
+    /// [`Detector::update_candidates`] with the obstacles in their poses at t0 and t1
+    /// (translation and rotation about the pivot): a turning obstacle's region swept over the
+    /// step is bounded in the frame of its shape (see `obstacle_overlaps`).
+    ///
+    /// # Panics
+    /// As [`Detector::update_candidates`], or if the two obstacle slices differ in length.
+    pub fn update_candidates_posed(
+        &mut self,
+        x0: &[SVector<f64, D>],
+        x1: &[SVector<f64, D>],
+        obstacles_t0: &[Obstacle<D>],
+        obstacles_t1: &[Obstacle<D>],
+    ) {
+        assert_eq!(
+            obstacles_t0.len(),
+            obstacles_t1.len(),
+            "one t1 pose per obstacle"
+        );
+        let poses: Vec<_> = obstacles_t1
+            .iter()
+            .map(|o| (o.translation, o.rotation))
+            .collect();
+        self.candidates_over_step(x0, x1, obstacles_t0, &poses);
+    }
+
+    /// The broad phase with each obstacle's (translation, rotation) at t1.
+    fn candidates_over_step(
+        &mut self,
+        x0: &[SVector<f64, D>],
+        x1: &[SVector<f64, D>],
+        obstacles: &[Obstacle<D>],
+        poses_t1: &[(SVector<f64, D>, SMatrix<f64, D, D>)],
+    ) {
+        let n = self.surface.node_count();
+        assert!(
+            x0.len() >= n && x1.len() >= n,
+            "positions shorter than the surface's nodes"
         );
         let margin = self.options.margin.max(0.0);
         self.facet_boxes = map_chunks(&self.surface.facets, |_, fs| {
@@ -541,8 +582,7 @@ where
                 for (i, (&node, seg)) in group.iter().zip(&segs).enumerate() {
                     let body = surface.slave_body[start + g * GROUP + i];
                     for (k, o) in obstacles.iter().enumerate() {
-                        let swept = (o.translation, obstacle_translation_t1[k]);
-                        if obstacle_overlaps(o, swept, seg, margin, cache[k].as_ref()) {
+                        if obstacle_overlaps(o, &poses_t1[k], seg, margin, cache[k].as_ref()) {
                             out.push((node, Master::Obstacle(k)));
                         }
                     }
@@ -575,7 +615,7 @@ where
     }
 
     /// Narrow phase at the configuration `x` (global node positions [m], usually the predicted
-    /// end of the step) with the obstacles at their `translation`: one pair per (slave,
+    /// end of the step) with the obstacles in their pose: one pair per (slave,
     /// obstacle) and per (slave, master body) among the candidates whose gap is below the
     /// margin. Sorted by slave, then master.
     ///
@@ -687,10 +727,51 @@ where
     }
 }
 
-/// Whether an obstacle's region swept between translations `t.0` and `t.1`, grown by `margin`,
-/// may touch the box `seg` (conservative).
+/// Whether an obstacle's region swept from its pose `o` (t0) to `pose_t1` (translation,
+/// rotation), grown by `margin`, may touch the box `seg` (conservative).
+///
+/// An obstacle that turns is tested in the frame of its shape at t = 0, where it stands still
+/// and the box moves: the box's centre c goes from xi0 to xi1 there, along
+/// `xi(t) = p + R(t)^T (c - p - T(t))` (p the pivot, T linear, R turning at a constant rate by
+/// the angle phi of the step), which stays within `phi (|a0| + |a1|) / 4` of the chord
+/// (a = c - p - T at either end: each of `(1 - s) (E(t) - I) a0` and `s (E(t) - E(h)) a1`
+/// is at most `s (1 - s) phi |a|`), and never further than `2 max |a|`. The box of the chord
+/// grown by that bound and the half diagonal of `seg` is tested against the shape at rest.
 fn obstacle_overlaps<const D: usize>(
     o: &Obstacle<D>,
+    pose_t1: &(SVector<f64, D>, SMatrix<f64, D, D>),
+    seg: &Aabb<D>,
+    margin: f64,
+    facets: Option<&ObstacleFacets<D>>,
+) -> bool
+where
+    Dim<D>: SpatialDim<D>,
+{
+    let identity = SMatrix::<f64, D, D>::identity();
+    if o.rotation == identity && pose_t1.1 == identity {
+        return shape_overlaps(&o.shape, (o.translation, pose_t1.0), seg, margin, facets);
+    }
+    let p = o.pivot_point();
+    let c = (seg.min + seg.max) * 0.5;
+    let radius = 0.5 * (seg.max - seg.min).norm();
+    let (a0, a1) = (c - p - o.translation, c - p - pose_t1.0);
+    let (xi0, xi1) = (
+        p + o.rotation.transpose() * a0,
+        p + pose_t1.1.transpose() * a1,
+    );
+    // The angle of the step's turn R1 R0^T: its trace is (D - 2) + 2 cos(phi).
+    let cos = 0.5 * ((pose_t1.1 * o.rotation.transpose()).trace() - (D as f64 - 2.0));
+    let phi = cos.clamp(-1.0, 1.0).acos();
+    let bow = (0.25 * phi * (a0.norm() + a1.norm())).min(2.0 * a0.norm().max(a1.norm()));
+    let local = Aabb::from_points([&xi0, &xi1]).loosened(radius + bow);
+    let zero = SVector::<f64, D>::zeros();
+    shape_overlaps(&o.shape, (zero, zero), &local, margin, facets)
+}
+
+/// Whether a shape swept between translations `t.0` and `t.1` (not turned), grown by
+/// `margin`, may touch the box `seg` (conservative).
+fn shape_overlaps<const D: usize>(
+    shape: &ObstacleShape<D>,
     t: (SVector<f64, D>, SVector<f64, D>),
     seg: &Aabb<D>,
     margin: f64,
@@ -700,7 +781,7 @@ where
     Dim<D>: SpatialDim<D>,
 {
     let (tlo, thi) = (t.0.inf(&t.1), t.0.sup(&t.1));
-    match &o.shape {
+    match shape {
         ObstacleShape::Halfspace { point, normal } => {
             let norm = normal.norm();
             if !positive(norm) {
@@ -750,7 +831,7 @@ where
     }
 }
 
-/// The contact of point `p` with an obstacle at its current translation: the pair (slave and
+/// The contact of point `p` with an obstacle in its current pose: the pair (slave and
 /// master left to fill) and the choice to remember (face or facet index).
 fn obstacle_pair<const D: usize>(
     o: &Obstacle<D>,
@@ -774,12 +855,11 @@ where
             barycentric: e0,
             feature,
         };
-    let t = o.translation;
     match &o.shape {
         ObstacleShape::Halfspace { .. }
         | ObstacleShape::Ball { .. }
         | ObstacleShape::Box { .. } => {
-            let g = analytic_obstacle_gap(&o.shape, &t, p, previous, hysteresis)?;
+            let g = posed_obstacle_gap(o, p, previous, hysteresis)?;
             Some((pair(g.gap, g.normal, g.point, g.feature), g.choice))
         }
         ObstacleShape::Facets { .. } => {
@@ -787,7 +867,10 @@ where
             if of.facets.is_empty() {
                 return None;
             }
-            let pl = p - t;
+            // Searched in the frame of the shape at t = 0; the point and normal turned back.
+            let pl = o.to_local(p);
+            let found =
+                |c: Choice<D>| pair(c.gap, o.turn(&c.normal), o.to_world(&c.point), c.feature);
             // Grow a search box until it holds a facet at most its half-width away: then it
             // holds every facet as close as the closest one.
             let diag = (of.bounds.max - of.bounds.min).norm();
@@ -813,7 +896,7 @@ where
                     );
                     if let Some(c) = c {
                         if (pl - c.point).norm() <= r {
-                            return Some((pair(c.gap, c.normal, c.point + t, c.feature), c.facet));
+                            return Some((found(c), c.facet));
                         }
                     }
                 }
@@ -827,7 +910,7 @@ where
                         previous,
                         hysteresis,
                     )?;
-                    return Some((pair(c.gap, c.normal, c.point + t, c.feature), c.facet));
+                    return Some((found(c), c.facet));
                 }
                 r *= 4.0;
             }

@@ -268,8 +268,42 @@ pub fn analytic_obstacle_gap<const D: usize>(
     }
 }
 
-/// Hessian of the distance to an analytic obstacle at a slave point `x` paired as `pair`
-/// (zero on flat faces).
+/// The gap of point `p` to an analytic obstacle (half-space, ball, box) in its pose: computed
+/// in the frame of the shape at t = 0, the normal and the closest point turned back (a turned
+/// box is no longer axis-aligned). `None` as [`analytic_obstacle_gap`].
+pub fn posed_obstacle_gap<const D: usize>(
+    obstacle: &Obstacle<D>,
+    p: &SVector<f64, D>,
+    previous: Option<usize>,
+    hysteresis: f64,
+) -> Option<ObstacleGap<D>> {
+    if !obstacle.is_turned() {
+        return analytic_obstacle_gap(
+            &obstacle.shape,
+            &obstacle.translation,
+            p,
+            previous,
+            hysteresis,
+        );
+    }
+    let local = obstacle.to_local(p);
+    let g = analytic_obstacle_gap(
+        &obstacle.shape,
+        &SVector::zeros(),
+        &local,
+        previous,
+        hysteresis,
+    )?;
+    Some(ObstacleGap {
+        normal: obstacle.turn(&g.normal),
+        point: obstacle.to_world(&g.point),
+        ..g
+    })
+}
+
+/// Hessian of the distance to an analytic obstacle in its pose at a slave point `x` paired as
+/// `pair` (zero on flat faces). The terms below are built from the world normal, point and
+/// (turned) edge direction, so they are the frame's `R H R^T`.
 pub fn obstacle_gap_hessian<const D: usize>(
     obstacle: &Obstacle<D>,
     pair: &ContactPair<D>,
@@ -280,7 +314,11 @@ pub fn obstacle_gap_hessian<const D: usize>(
     let distance = (x - pair.point).norm();
     match (&obstacle.shape, pair.feature) {
         (ObstacleShape::Ball { center, .. }, _) => {
-            let d = (x - center - obstacle.translation).norm();
+            let d = if obstacle.is_turned() {
+                (x - obstacle.to_world(center)).norm()
+            } else {
+                (x - center - obstacle.translation).norm()
+            };
             if d > 0.0 {
                 projector / d
             } else {
@@ -291,6 +329,7 @@ pub fn obstacle_gap_hessian<const D: usize>(
         (ObstacleShape::Box { .. }, Feature::Edge(k)) if distance > 0.0 && D == 3 => {
             let mut e = SVector::<f64, D>::zeros();
             e[k] = 1.0;
+            let e = obstacle.turn(&e);
             (projector - e * e.transpose()) / distance
         }
         (ObstacleShape::Facets { .. }, Feature::Vertex(_)) if distance > 0.0 => {

@@ -87,10 +87,6 @@ impl<const D: usize> Simulation<D>
 where
     Dim<D>: SpatialDim<D>,
 {
-    pub(super) fn obstacle_velocity(&self, k: usize) -> SVector<f64, D> {
-        SVector::from_column_slice(&self.state.obstacle_velocities[k * D..k * D + D])
-    }
-
     /// The friction law of a contact (the obstacle's own, or the default).
     pub(super) fn friction_law(&self, obstacle: Option<usize>) -> FrictionLaw {
         obstacle
@@ -188,7 +184,8 @@ where
                         vec![(s, 1.0)],
                         pair.normal,
                         pair.gap,
-                        self.obstacle_velocity(k),
+                        // The surface's velocity where the point touches it.
+                        self.surface_velocity(k, &input.obstacles_t1[k], &pair.point),
                         Some(k),
                         pair.point,
                     ),

@@ -19,6 +19,7 @@ pub mod model;
 mod newton;
 pub mod observe;
 mod rotation;
+mod obstacle_motion;
 pub mod state;
 mod step;
 mod symmetric_matrix;
@@ -450,7 +451,7 @@ where
             if let Some(f) = &o.friction {
                 f.validate()?;
             }
-            validate_motion(o)?;
+            obstacle_motion::validate_motion(o)?;
         }
         let mut obstacle_translations = Vec::with_capacity(obstacles.len() * D);
         let mut obstacle_velocities = Vec::with_capacity(obstacles.len() * D);
@@ -458,6 +459,8 @@ where
             obstacle_translations.extend(o.translation.iter());
             obstacle_velocities.extend(o.velocity.iter());
         }
+        let (obstacle_rotations, obstacle_angular_velocities) =
+            obstacle_motion::initial_rotations(obstacles);
         let mut boundary_faces = Vec::new();
         let mut detector = None;
         if needs_contact {
@@ -509,6 +512,8 @@ where
             loads: vec![0.0; ndof],
             obstacle_translations,
             obstacle_velocities,
+            obstacle_rotations,
+            obstacle_angular_velocities,
             contact_energy: 0.0,
             multipliers: Vec::new(),
             friction_normals: Vec::new(),
@@ -595,6 +600,7 @@ where
             }
         }
         let mut state = state;
+        self.check_obstacle_state(&mut state)?;
         if state.gap_displacement.is_empty() {
             // A state from before the gap displacement existed: the configuration's.
             state.gap_displacement = state.displacement.clone();
@@ -734,7 +740,7 @@ where
         Ok(())
     }
 
-    /// The rigid obstacles, at their position at t = 0 (see [`State::obstacle_translations`]).
+    /// The rigid obstacles, at their pose at t = 0 (see [`Simulation::posed_obstacles`]).
     pub fn obstacles(&self) -> &[Obstacle<D>] {
         &self.model.obstacles
     }
@@ -916,49 +922,6 @@ fn end_positions<const D: usize>(
             })
         })
         .collect()
-}
-
-/// A motion schedule: times increasing and finite, velocities finite; rotation is refused
-/// until rotating obstacles are implemented.
-fn validate_motion<const D: usize>(o: &Obstacle<D>) -> Result<()>
-where
-    Dim<D>: SpatialDim<D>,
-{
-    let mut previous = 0.0;
-    for (i, piece) in o.motion.iter().enumerate() {
-        let key = |what: &str| format!("obstacles.{}.motion.{i}.{what}", o.name);
-        if !(piece.until > previous && piece.until.is_finite()) {
-            return Err(invalid(
-                &key("until"),
-                piece.until,
-                &format!("a finite time [s] after the previous piece's end ({previous})"),
-            ));
-        }
-        previous = piece.until;
-        if piece.velocity.iter().any(|v| !v.is_finite()) {
-            return Err(invalid(
-                &key("velocity"),
-                format!("{:?}", piece.velocity.as_slice()),
-                "finite components [m/s]",
-            ));
-        }
-        if !piece.angular_velocity.is_empty() && piece.angular_velocity.len() != <Dim<D>>::ANGULAR {
-            return Err(invalid(
-                &key("angular_velocity"),
-                format!("{} components", piece.angular_velocity.len()),
-                &format!("{} component(s) [rad/s]", <Dim<D>>::ANGULAR),
-            ));
-        }
-        if piece.angular_velocity.iter().any(|w| *w != 0.0) {
-            return Err(Error::NotAvailable {
-                feature: format!("{} (rotating obstacles)", key("angular_velocity")),
-                detail: "obstacles translate only in this version; give angular_velocity = 0 \
-                         or leave it out"
-                    .into(),
-            });
-        }
-    }
-    Ok(())
 }
 
 fn validate_settings<const D: usize>(s: &Settings<D>) -> Result<()>

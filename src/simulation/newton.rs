@@ -59,6 +59,8 @@ pub(super) struct StepStart<const D: usize> {
     pub obstacles_t1: Vec<Obstacle<D>>,
     /// Obstacle translations at t1 (flat) [m].
     pub translations_t1: Vec<f64>,
+    /// Obstacle rotations at t1 (stored values, see `State::obstacle_rotations`).
+    pub rotations_t1: Vec<f64>,
     /// Face shares of the boundary nodes at t0.
     pub areas: Vec<Vec<(f64, SVector<f64, D>)>>,
 }
@@ -179,8 +181,6 @@ where
         let ndof = v0.len();
         let method: &dyn Method = methods::method(self.model.contact.method);
         let contact_in_newton = self.caches.detector.is_some() && method.in_newton();
-        let t1_vectors: Vec<SVector<f64, D>> =
-            start.obstacles_t1.iter().map(|o| o.translation).collect();
         let diagonal = self.system_diagonal().to_vec();
         let frictional = self.frictional();
         let tolerance = self.model.settings.tolerance;
@@ -241,7 +241,12 @@ where
             let x_gap = end_positions(&self.reference, &start.gap_u0, v0, &v1, h);
             if contact_in_newton {
                 let detector = self.caches.detector.as_mut().expect("contact_in_newton");
-                detector.update_candidates(&start.x0, &x_gap, &start.obstacles_t0, &t1_vectors);
+                detector.update_candidates_posed(
+                    &start.x0,
+                    &x_gap,
+                    &start.obstacles_t0,
+                    &start.obstacles_t1,
+                );
                 candidates = detector.candidates().len();
                 let mut pairs = detector.pairs(&x_gap, &start.obstacles_t1);
                 // Between two bodies, the penalty methods keep both passes (each body's nodes

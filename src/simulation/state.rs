@@ -33,8 +33,18 @@ pub struct State {
     pub loads: Vec<f64>,
     /// Displacement of each obstacle since t = 0 [m], D per obstacle.
     pub obstacle_translations: Vec<f64>,
-    /// Velocity of each obstacle [m/s], D per obstacle (changed between steps through the API).
+    /// Velocity of each obstacle (of its pivot) [m/s], D per obstacle (changed between steps
+    /// through the API; a schedule's mean over the step).
     pub obstacle_velocities: Vec<f64>,
+    /// Rotation of each obstacle about its pivot since t = 0: the angle [rad] in 2D, the
+    /// rotation matrix's 9 entries (column-major) in 3D, per obstacle (empty in states from
+    /// before rotating obstacles: none turned).
+    #[serde(default)]
+    pub obstacle_rotations: Vec<f64>,
+    /// Angular velocity of each obstacle about its pivot [rad/s], 1 (2D) or 3 (3D) per
+    /// obstacle (a schedule's turn over the step divided by the step; empty: none).
+    #[serde(default)]
+    pub obstacle_angular_velocities: Vec<f64>,
     /// Energy stored in soft-way penalties at the end of the last step [J].
     pub contact_energy: f64,
     /// Augmented Lagrangian multipliers carried from step to step: (slave node, master,

@@ -10,9 +10,9 @@ use super::newton::{Solution, StepStart};
 use super::observe::{NullRecorder, Recorder};
 use super::{end_positions, invalid, BodyId, Simulation, StepReport};
 use crate::assembly;
-use crate::contact::methods::projection::{project, ProjectionContext};
+use crate::contact::methods::projection::{project, Applied, ProjectionContext};
 use crate::contact::methods::{self, EndProjection, Method};
-use crate::contact::{GapDisplacement, Master, Obstacle};
+use crate::contact::{GapDisplacement, Master};
 use crate::dim::{Dim, SpatialDim};
 use crate::error::{Error, Result};
 use crate::time::SpaceTimeScheme;
@@ -90,31 +90,6 @@ where
         }
     }
 
-    /// The obstacles at the given translations (D per obstacle).
-    fn obstacles_at(&self, translations: &[f64]) -> Vec<Obstacle<D>> {
-        self.model
-            .obstacles
-            .iter()
-            .enumerate()
-            .map(|(k, o)| Obstacle {
-                translation: SVector::from_column_slice(&translations[k * D..k * D + D]),
-                ..o.clone()
-            })
-            .collect()
-    }
-
-    /// Sets the velocity of every scheduled obstacle for a step of size `h`: its displacement
-    /// over the step (across schedule pieces) divided by `h`.
-    fn schedule_obstacles(&mut self, h: f64) {
-        let t0 = self.state.time;
-        for (k, o) in self.model.obstacles.iter().enumerate() {
-            if let Some(d) = o.scheduled_displacement(t0, t0 + h) {
-                let v = d / h;
-                self.state.obstacle_velocities[k * D..k * D + D].copy_from_slice(v.as_slice());
-            }
-        }
-    }
-
     /// Whether gaps are measured on the running eq 22 displacement: chosen, and a penalty
     /// method (the projections put the configuration itself on the surface).
     fn gaps_on_trapezoid(&self) -> bool {
@@ -139,12 +114,7 @@ where
             u0.clone()
         };
         let x0 = end_positions(&self.reference, &gap_u0, &v0, &vec![0.0; ndof], 0.0);
-        let translations_t0 = self.state.obstacle_translations.clone();
-        let translations_t1: Vec<f64> = translations_t0
-            .iter()
-            .zip(&self.state.obstacle_velocities)
-            .map(|(t, v)| t + h * v)
-            .collect();
+        let (translations_t1, rotations_t1) = self.obstacle_poses_after(h);
         let areas = if self.caches.detector.is_some() {
             self.tributary_areas(&x0)
         } else {
@@ -154,9 +124,10 @@ where
             step: self.state.step + 1,
             t0: self.state.time,
             h,
-            obstacles_t0: self.obstacles_at(&translations_t0),
-            obstacles_t1: self.obstacles_at(&translations_t1),
+            obstacles_t0: self.posed_obstacles(),
+            obstacles_t1: self.obstacles_at(&translations_t1, &rotations_t1),
             translations_t1,
+            rotations_t1,
             u0,
             v0,
             gap_u0,
@@ -195,7 +166,8 @@ where
 
     /// The energy the end-of-step projection took out of the system (negative: put in),
     /// from `before` to `after` it, both (u, v): the work it causes (external forces on its
-    /// displacement, obstacles' velocities times its impulse) minus its change of the
+    /// displacement, obstacles' (pivots') velocities times its impulse; the caller adds the
+    /// turning obstacles' `spin_work`) minus its change of the
     /// scheme's conserved energy ([`Self::scheme_energy`], with the step's own h). Measured
     /// on E instead, it would count the strain of the stiff modes that moving a node kicks,
     /// which the next steps' swing of E gives back unbooked: on the ring drop that booked
@@ -261,8 +233,6 @@ where
         let (u0, v0, f_ext) = (&start.u0, &start.v0, &start.f_ext);
         let ndof = v0.len();
         let method: &dyn Method = methods::method(self.model.contact.method);
-        let t1_vectors: Vec<SVector<f64, D>> =
-            start.obstacles_t1.iter().map(|o| o.translation).collect();
         let Solution {
             mut v1,
             ref material_history,
@@ -317,16 +287,25 @@ where
         }
         // Signed: negative where the projection created energy.
         let mut projection_dissipation = 0.0;
+        // The projection's impulses on obstacles, where they act (for turning obstacles' work).
+        let mut applied: Vec<Applied<D>> = Vec::new();
         let rule = method.end_projection();
         if rule != EndProjection::None {
             if let Some(detector) = self.caches.detector.as_mut() {
                 let x_end = end_positions(&self.reference, &gap_u1, &v1, &vec![0.0; ndof], 0.0);
-                detector.update_candidates(&start.x0, &x_end, &start.obstacles_t0, &t1_vectors);
+                detector.update_candidates_posed(
+                    &start.x0,
+                    &x_end,
+                    &start.obstacles_t0,
+                    &start.obstacles_t1,
+                );
                 let pairs = detector.pairs(&x_end, &start.obstacles_t1);
                 let (u_before, v_before) = (u1.clone(), v1.clone());
                 let mut impulses = vec![vec![0.0; D]; self.model.obstacles.len()];
                 let detector = self.caches.detector.as_ref().expect("checked");
-                let velocity = |k: usize| self.obstacle_velocity(k);
+                let velocity = |k: usize, x: &SVector<f64, D>| {
+                    self.surface_velocity(k, &start.obstacles_t1[k], x)
+                };
                 let context = ProjectionContext {
                     rule,
                     active: &vars.active,
@@ -339,7 +318,14 @@ where
                 };
                 // Projected on the gaps' positions; the configuration moves with them.
                 let gap_before = gap_u1.clone();
-                project(&context, &pairs, &mut gap_u1, &mut v1, &mut impulses);
+                project(
+                    &context,
+                    &pairs,
+                    &mut gap_u1,
+                    &mut v1,
+                    &mut impulses,
+                    &mut applied,
+                );
                 for i in 0..ndof {
                     u1[i] += gap_u1[i] - gap_before[i];
                 }
@@ -352,6 +338,11 @@ where
                         h,
                         material_history,
                     );
+                    if self.obstacles_turn() {
+                        // Turning obstacles' impulses also work through their turning.
+                        projection_dissipation +=
+                            self.spin_work(h, &start.obstacles_t1, applied.iter().copied());
+                    }
                 }
                 for (total, impulse) in contact_forces.iter_mut().zip(&impulses) {
                     for (t, i) in total.iter_mut().zip(impulse) {
@@ -377,6 +368,14 @@ where
             let v = self.obstacle_velocity(k);
             work += h * (0..D).map(|i| f[i] * v[i]).sum::<f64>();
         }
+        if self.obstacles_turn() {
+            let at_pairs = terms.pairs.iter().filter_map(|p| {
+                let f = p.normal * p.normal_force + p.friction;
+                p.obstacle.map(|k| (k, p.master_point, f))
+            });
+            let forces = at_pairs.chain(applied.iter().copied());
+            work += self.spin_work(h, &start.obstacles_t1, forces);
+        }
         for (b, r) in reactions.iter_mut().enumerate() {
             for n in self.body_nodes(BodyId(b)) {
                 for k in 0..D {
@@ -393,7 +392,12 @@ where
         let mut contacts = Vec::new();
         if let Some(detector) = self.caches.detector.as_mut() {
             let x_end = end_positions(&self.reference, &gap_u1, &v1, &vec![0.0; ndof], 0.0);
-            detector.update_candidates(&start.x0, &x_end, &start.obstacles_t0, &t1_vectors);
+            detector.update_candidates_posed(
+                &start.x0,
+                &x_end,
+                &start.obstacles_t0,
+                &start.obstacles_t1,
+            );
             for p in detector.pairs(&x_end, &start.obstacles_t1) {
                 max_penetration = max_penetration.max(-p.gap);
                 let force = terms
@@ -429,6 +433,7 @@ where
         state.dissipated_energy +=
             h * terms.dissipation_rate + projection_dissipation + damping_loss;
         state.obstacle_translations = start.translations_t1.clone();
+        state.obstacle_rotations = start.rotations_t1.clone();
         state.material_history.clone_from(material_history);
         state.contact_energy = terms.energy;
         state.multipliers = vars
@@ -497,7 +502,9 @@ where
 mod tests {
     use super::*;
     use crate::contact::methods::OuterVariables;
-    use crate::contact::{ContactMethod, ContactSettings, FrictionLaw, MasterId, ObstacleShape};
+    use crate::contact::{
+        ContactMethod, ContactSettings, FrictionLaw, MasterId, Obstacle, ObstacleShape,
+    };
     use crate::material::{LinearElastic, Material};
     use crate::mesh::generators::rectangle;
     use crate::simulation::contact_terms::TermsInput;
@@ -696,6 +703,34 @@ mod tests {
                 if slips { closed } else { 0 },
                 "elastic slip {elastic_slip}"
             );
+        }
+    }
+
+    #[test]
+    fn coulomb_friction_tangent_on_a_turning_plane_matches_finite_differences() {
+        let plane = Obstacle {
+            rotation: nalgebra::Rotation2::new(0.05).into_inner(),
+            ..Obstacle::new(
+                "p",
+                ObstacleShape::Halfspace {
+                    point: Vector2::new(0.3, 0.0),
+                    normal: Vector2::new(0.0, 1.0),
+                },
+            )
+        };
+        let law = FrictionLaw::Coulomb {
+            coefficient: 0.4,
+            regularization: 1e-3,
+        };
+        for (elastic_slip, omega) in [(0.0, 0.0), (0.0, 2.0), (2e-3, 2.0)] {
+            let mut sim = block_on(plane.clone(), law, 1e-3);
+            sim.state.obstacle_angular_velocities = vec![omega];
+            let mut anchors = BTreeMap::new();
+            for s in 0..sim.node_count() {
+                anchors.insert((s, MasterId::Obstacle(0)), Vector2::new(elastic_slip, 0.0));
+            }
+            eprintln!("omega {omega} slip {elastic_slip}");
+            check(sim, &anchors, 1e-6);
         }
     }
 

@@ -349,12 +349,30 @@ fn obstacle_motion_schedules() {
         },
     );
     assert_bad_scene(
-        "motion_rotation",
+        "motion_angular_velocity_vector",
         Expect {
             key: "obstacles.0.motion.0.angular_velocity",
-            marker: Some("angular_velocity = 0.5"),
-            found: "[0.5]",
-            expected: "rotating obstacles are not available yet",
+            marker: Some("angular_velocity = [0.0, 0.0, 0.5]"),
+            found: "3 components [0.0, 0.0, 0.5]",
+            expected: "a number [rad/s] in 2D",
+        },
+    );
+    assert_bad_scene(
+        "motion_angular_velocity_nan",
+        Expect {
+            key: "obstacles.0.motion.0.angular_velocity",
+            marker: Some("angular_velocity = nan"),
+            found: "the number NaN",
+            expected: "finite numbers [rad/s]",
+        },
+    );
+    assert_bad_scene(
+        "pivot_length",
+        Expect {
+            key: "obstacles.0.pivot",
+            marker: Some("pivot = [0.0, 0.2, 0.0]"),
+            found: "3 components",
+            expected: "2 components (dimension = 2)",
         },
     );
 }

@@ -24,21 +24,26 @@ pub(crate) struct ProjectionContext<'a, const D: usize> {
     pub nodal_mass: &'a [f64],
     /// Prescribed velocity components (they do not move).
     pub prescribed: &'a [Option<f64>],
-    /// Obstacle velocities [m/s].
-    pub obstacle_velocity: &'a dyn Fn(usize) -> SVector<f64, D>,
+    /// The velocity of obstacle k's surface at a point [m/s].
+    pub obstacle_velocity: &'a dyn Fn(usize, &SVector<f64, D>) -> SVector<f64, D>,
     /// The step [s].
     pub time_step: f64,
 }
 
+/// An impulse on an obstacle as a force over the step: (obstacle, master point [m], force [N]).
+pub(crate) type Applied<const D: usize> = (usize, SVector<f64, D>, SVector<f64, D>);
+
 /// Projects the points of `pairs` (found in the stored end configuration) that the rule names:
 /// moves `u1` (and for [`EndProjection::PenetratingWithVelocity`] removes the approaching
-/// normal relative velocity from `v1`, adding the impulse to `contact_forces` as a force).
+/// normal relative velocity from `v1`, adding the impulse to `contact_forces` as a force, and
+/// to `applied` with the point it acts at).
 pub(crate) fn project<const D: usize>(
     ctx: &ProjectionContext<'_, D>,
     pairs: &[ContactPair<D>],
     u1: &mut [f64],
     v1: &mut [f64],
     contact_forces: &mut [Vec<f64>],
+    applied: &mut Vec<Applied<D>>,
 ) {
     let h = ctx.time_step;
     for p in pairs {
@@ -57,7 +62,7 @@ pub(crate) fn project<const D: usize>(
         let s = p.slave;
         // Master nodes (weights) and the master's velocity.
         let (masters, master_velocity): (Vec<(usize, f64)>, SVector<f64, D>) = match p.master {
-            Master::Obstacle(k) => (Vec::new(), (ctx.obstacle_velocity)(k)),
+            Master::Obstacle(k) => (Vec::new(), (ctx.obstacle_velocity)(k, &p.point)),
             Master::Facet(f) => {
                 let w = p.barycentric;
                 let list: Vec<(usize, f64)> = (0..D).map(|i| (ctx.facets[f][i], w[i])).collect();
@@ -106,6 +111,7 @@ pub(crate) fn project<const D: usize>(
                     for i in 0..D {
                         contact_forces[k][i] += f[i];
                     }
+                    applied.push((k, p.point, f));
                 }
             }
         }

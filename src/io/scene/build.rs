@@ -542,13 +542,17 @@ impl LoadedScene {
     where
         Dim<D>: SpatialDim<D>,
     {
+        let found = match w {
+            AngularSpec::Scalar(x) => format!("the number {x}"),
+            AngularSpec::Vector(v) => format!("{} components {v:?}", v.len()),
+        };
         let values = match (w, <Dim<D>>::ANGULAR) {
             (AngularSpec::Scalar(x), 1) => vec![*x],
             (AngularSpec::Vector(v), 3) if v.len() == 3 => v.clone(),
             _ => {
                 return Err(self.error(
                     key,
-                    format!("{w:?}"),
+                    found,
                     if D == 2 {
                         "a number [rad/s] in 2D"
                     } else {
@@ -558,7 +562,7 @@ impl LoadedScene {
             }
         };
         if values.iter().any(|x| !x.is_finite()) {
-            return Err(self.error(key, format!("{w:?}"), "finite numbers"));
+            return Err(self.error(key, found, "finite numbers [rad/s]"));
         }
         Ok(values)
     }

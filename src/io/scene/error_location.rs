@@ -112,7 +112,9 @@ pub(super) fn untagged_expectation(key: &str) -> Option<&'static str> {
         "velocity" if key.contains(".constraints.") => {
             Some("an array of numbers [m/s] or a table of some components, e.g. { y = 0.0 }")
         }
-        "initial_angular_velocity" => Some("a number [rad/s] in 2D, [wx, wy, wz] [rad/s] in 3D"),
+        "initial_angular_velocity" | "angular_velocity" => {
+            Some("a number [rad/s] in 2D, [wx, wy, wz] [rad/s] in 3D")
+        }
         _ => None,
     }
 }

@@ -1,5 +1,6 @@
-//! `[[obstacles]]`: names, shapes (halfspace, box, ball, polyline / trimesh), velocity and
-//! friction, validated for dimension D.
+//! `[[obstacles]]`: names, shapes (halfspace, box, ball, polyline / trimesh), velocity or
+//! motion schedule (with angular velocities about the pivot) and friction, validated for
+//! dimension D.
 
 use super::schema::{ObstacleSection, ShapeSpec};
 use super::LoadedScene;
@@ -8,7 +9,7 @@ use crate::dim::{Dim, SpatialDim};
 use crate::error::{Error, Result};
 
 impl LoadedScene {
-    /// `obstacles.{o}`: name, shape, velocity, friction.
+    /// `obstacles.{o}`: name, shape, velocity or motion, pivot, friction.
     pub(super) fn obstacle<const D: usize>(
         &self,
         o: usize,
@@ -49,14 +50,6 @@ impl LoadedScene {
                     Some(w) => self.angular::<D>(&format!("{mk}.angular_velocity"), w)?,
                     None => Vec::new(),
                 };
-                if angular_velocity.iter().any(|w| *w != 0.0) {
-                    return Err(self.error(
-                        &format!("{mk}.angular_velocity"),
-                        format!("{angular_velocity:?}"),
-                        "0: obstacles translate only in this version (rotating obstacles are \
-                         not available yet)",
-                    ));
-                }
                 obstacle.motion.push(MotionSegment {
                     until: m.until,
                     velocity,

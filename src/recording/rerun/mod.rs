@@ -15,7 +15,7 @@
 //! |---|---|---|
 //! | `bodies/<name>/mesh` | every iteration | deformed mesh at the predicted end positions (2D: one closed line strip per cell; 3D: boundary triangles), coloured by the [`ColorField`] |
 //! | `bodies/<name>/nodes` | every iteration | the nodes, same positions |
-//! | `obstacles/<name>` | first step (fixed obstacles) or every step (moving ones) | the obstacle's shape |
+//! | `obstacles/<name>` | first step (fixed obstacles) or every step (moving ones) | the obstacle's shape in its pose (translated and turned) |
 //! | `contacts/candidates` | every iteration | every contact record: slave point and a segment to its master point |
 //! | `contacts/active` | every iteration | slave points in the active set |
 //! | `contacts/gap` | every iteration | slave points coloured by their gap [m] (red: penetration, blue: open) |
@@ -193,8 +193,9 @@ where
         self
     }
 
-    /// The rigid obstacles to draw under `obstacles/<name>` (names contact records). Their
-    /// position at time t is `translation + velocity * t`.
+    /// The rigid obstacles to draw under `obstacles/<name>` (names contact records). Those
+    /// that move (a velocity, an angular velocity or a motion schedule) are drawn every step in
+    /// the simulation's pose of the obstacle with the same index at the end of the step.
     pub fn with_obstacles(mut self, obstacles: &[Obstacle<D>]) -> Self {
         self.obstacles = obstacles.to_vec();
         self
@@ -301,11 +302,22 @@ where
         if self.color_field == ColorField::VonMises {
             self.mises = sim.cell_stresses().iter().map(von_mises).collect();
         }
-        let t_end = sim.state().time + sim.settings().time_step;
+        let h = sim.settings().time_step;
+        let t_end = sim.state().time + h;
         self.set_time(step, self.iteration + 1, t_end);
+        // Moving obstacles in the simulation's pose at the end of the step (the drawn ones
+        // matched to the simulation's by index).
+        let posed = sim.obstacles_after(h);
         for o in 0..self.obstacles.len() {
-            if self.obstacles[o].velocity.iter().any(|v| *v != 0.0) {
-                self.log_obstacle(o, t_end, false);
+            if self.obstacle_moves(o) {
+                let obstacle = match posed.get(o) {
+                    Some(p) => Obstacle {
+                        name: self.obstacles[o].name.clone(),
+                        ..p.clone()
+                    },
+                    None => self.obstacles[o].clone(),
+                };
+                self.log_obstacle(&obstacle, false);
             }
         }
     }

@@ -10,6 +10,7 @@ use re_sdk_types::components::{Color, Radius};
 use super::colors::colormap;
 use super::obstacle_shapes::{shape_strips, shape_triangles};
 use super::{ColorField, RerunRecorder};
+use crate::contact::Obstacle;
 use crate::dim::{Dim, SpatialDim};
 use crate::recording::IterationInfo;
 use crate::simulation::{BodyId, Simulation};
@@ -95,25 +96,33 @@ where
         bodies
     }
 
-    /// Logs the obstacles that do not move, once (static).
+    /// Whether obstacle `o` moves (a velocity, an angular velocity or a motion schedule).
+    pub(super) fn obstacle_moves(&self, o: usize) -> bool {
+        let obstacle = &self.obstacles[o];
+        !obstacle.motion.is_empty()
+            || obstacle.velocity.iter().any(|v| *v != 0.0)
+            || obstacle.angular_velocity.iter().any(|w| *w != 0.0)
+    }
+
+    /// Logs the obstacles that do not move, once (static), in their pose.
     pub(super) fn log_fixed_obstacles(&mut self) {
-        let fixed: Vec<usize> = (0..self.obstacles.len())
-            .filter(|&o| self.obstacles[o].velocity.iter().all(|v| *v == 0.0))
-            .collect();
-        for o in fixed {
-            self.log_obstacle(o, 0.0, true);
+        for o in 0..self.obstacles.len() {
+            if !self.obstacle_moves(o) {
+                let posed = self.obstacles[o].clone();
+                self.log_obstacle(&posed, true);
+            }
         }
     }
 
-    pub(super) fn log_obstacle(&mut self, o: usize, time: f64, is_static: bool) {
-        let obstacle = &self.obstacles[o];
-        let shift = obstacle.translation + obstacle.velocity * time;
+    /// Logs an obstacle's shape in its pose (translation and rotation about its pivot).
+    pub(super) fn log_obstacle(&mut self, obstacle: &Obstacle<D>, is_static: bool) {
+        let place = |p: &SVector<f64, D>| obstacle.to_world(p);
         let path = format!("obstacles/{}", obstacle.name);
         let color = Color::from_rgb(120, 120, 130);
         let r = if D == 2 {
             let strips: Vec<Vec<[f32; 2]>> = shape_strips(&obstacle.shape, self.scene_size)
                 .into_iter()
-                .map(|s| s.iter().map(|p| xy(&(p + shift))).collect())
+                .map(|s| s.iter().map(|p| xy(&place(p))).collect())
                 .collect();
             let arch = LineStrips2D::new(strips)
                 .with_colors([color])
@@ -125,7 +134,7 @@ where
             }
         } else {
             let (vertices, triangles) = shape_triangles(&obstacle.shape, self.scene_size);
-            let vertices: Vec<[f32; 3]> = vertices.iter().map(|p| xyz(&(p + shift))).collect();
+            let vertices: Vec<[f32; 3]> = vertices.iter().map(|p| xyz(&place(p))).collect();
             let arch = Mesh3D::new(vertices)
                 .with_triangle_indices(triangles)
                 .with_albedo_factor(0x78788280u32);

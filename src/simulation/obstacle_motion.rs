@@ -1,0 +1,332 @@
+//! Obstacle poses: each obstacle's translation and rotation about its pivot (the pivot moves
+//! with the translation), advanced every step from its velocity and angular velocity, and the
+//! surface velocity `v + omega x (x - pivot)` that contact reads. A schedule's piece turns the
+//! obstacle about the moving pivot at a constant angular velocity, so the pose at the end of
+//! a step is the exact composition of the turns `exp(omega_i dt_i)` of the pieces it spans.
+
+use nalgebra::{SMatrix, SVector};
+
+use super::state::State;
+use super::{invalid, Simulation};
+use crate::contact::Obstacle;
+use crate::dim::{Dim, SpatialDim};
+use crate::error::{Error, Result};
+
+impl<const D: usize> Simulation<D>
+where
+    Dim<D>: SpatialDim<D>,
+{
+    /// Rotation of obstacle `k` about its pivot since t = 0.
+    pub fn obstacle_rotation(&self, k: usize) -> SMatrix<f64, D, D> {
+        let r = <Dim<D>>::ROTATION;
+        <Dim<D>>::rotation_matrix(&self.state.obstacle_rotations[k * r..k * r + r])
+    }
+
+    /// Angular velocity of obstacle `k` about its pivot [rad/s] (1 component in 2D, 3 in 3D):
+    /// the last step's, or the one set for the next step.
+    pub fn obstacle_angular_velocity(&self, k: usize) -> Vec<f64> {
+        let a = <Dim<D>>::ANGULAR;
+        self.state.obstacle_angular_velocities[k * a..k * a + a].to_vec()
+    }
+
+    /// Where the pivot of obstacle `k` is now [m] (its pivot at t = 0 plus its translation).
+    pub fn obstacle_pivot(&self, k: usize) -> SVector<f64, D> {
+        self.model.obstacles[k].pivot_point() + self.obstacle_translation(k)
+    }
+
+    /// The obstacles in their current pose (`translation` and `rotation` set).
+    pub fn posed_obstacles(&self) -> Vec<Obstacle<D>> {
+        self.obstacles_at(
+            &self.state.obstacle_translations,
+            &self.state.obstacle_rotations,
+        )
+    }
+
+    /// The obstacles where a step of `h` [s] from the current state puts them, at the
+    /// velocities in the state (a schedule sets those at the start of each step, so a
+    /// recorder's `step_start` hook sees the step's own).
+    pub fn obstacles_after(&self, h: f64) -> Vec<Obstacle<D>> {
+        let (translations, rotations) = self.obstacle_poses_after(h);
+        self.obstacles_at(&translations, &rotations)
+    }
+
+    /// Sets the angular velocity of obstacle `k` about its pivot [rad/s] (1 component in 2D, 3
+    /// in 3D) from the next step on (kinematic obstacles driven by a host).
+    pub fn set_obstacle_angular_velocity(&mut self, k: usize, omega: &[f64]) -> Result<()> {
+        let count = self.model.obstacles.len();
+        let o = self
+            .model
+            .obstacles
+            .get(k)
+            .ok_or_else(|| Error::InvalidHandle(format!("obstacle {k} of {count}")))?;
+        let key = format!("obstacle `{}` angular velocity", o.name);
+        if !o.motion.is_empty() {
+            return Err(invalid(
+                &key,
+                "a motion schedule",
+                "an obstacle without a motion schedule (its schedule sets its angular velocity)",
+            ));
+        }
+        let a = <Dim<D>>::ANGULAR;
+        if omega.len() != a || omega.iter().any(|w| !w.is_finite()) {
+            return Err(invalid(
+                &key,
+                format!("{omega:?}"),
+                &format!("{a} finite component(s) [rad/s]"),
+            ));
+        }
+        self.state.obstacle_angular_velocities[k * a..k * a + a].copy_from_slice(omega);
+        Ok(())
+    }
+
+    /// Sets the velocity and angular velocity of every scheduled obstacle for a step of size
+    /// `h`: its displacement and its turn over the step (across schedule pieces) divided by
+    /// `h`.
+    pub(super) fn schedule_obstacles(&mut self, h: f64) {
+        let t0 = self.state.time;
+        let a = <Dim<D>>::ANGULAR;
+        for (k, o) in self.model.obstacles.iter().enumerate() {
+            if let Some(d) = o.scheduled_displacement(t0, t0 + h) {
+                let v = d / h;
+                self.state.obstacle_velocities[k * D..k * D + D].copy_from_slice(v.as_slice());
+                let turn = scheduled_turn::<D>(o, t0, t0 + h);
+                let omega = &mut self.state.obstacle_angular_velocities[k * a..k * a + a];
+                for (w, t) in omega.iter_mut().zip(turn) {
+                    *w = t / h;
+                }
+            }
+        }
+    }
+
+    /// The obstacles' poses after a step of `h` (flat translations, stored rotations): the
+    /// translation moves by `h v`, the rotation turns by `exp(h omega)`; an obstacle that does
+    /// not turn keeps its stored rotation's bits.
+    pub(super) fn obstacle_poses_after(&self, h: f64) -> (Vec<f64>, Vec<f64>) {
+        let translations: Vec<f64> = self
+            .state
+            .obstacle_translations
+            .iter()
+            .zip(&self.state.obstacle_velocities)
+            .map(|(t, v)| t + h * v)
+            .collect();
+        let (a, r) = (<Dim<D>>::ANGULAR, <Dim<D>>::ROTATION);
+        let mut rotations = self.state.obstacle_rotations.clone();
+        for k in 0..self.model.obstacles.len() {
+            let omega = &self.state.obstacle_angular_velocities[k * a..k * a + a];
+            if omega.iter().any(|w| *w != 0.0) {
+                let turn: Vec<f64> = omega.iter().map(|w| w * h).collect();
+                let next = <Dim<D>>::turned(&rotations[k * r..k * r + r], &turn);
+                rotations[k * r..k * r + r].copy_from_slice(&next);
+            }
+        }
+        (translations, rotations)
+    }
+
+    /// The obstacles at the given poses (D translations and `ROTATION` stored values each).
+    pub(super) fn obstacles_at(&self, translations: &[f64], rotations: &[f64]) -> Vec<Obstacle<D>> {
+        let r = <Dim<D>>::ROTATION;
+        self.model
+            .obstacles
+            .iter()
+            .enumerate()
+            .map(|(k, o)| Obstacle {
+                translation: SVector::from_column_slice(&translations[k * D..k * D + D]),
+                rotation: <Dim<D>>::rotation_matrix(&rotations[k * r..k * r + r]),
+                ..o.clone()
+            })
+            .collect()
+    }
+
+    /// The velocity of obstacle `k`'s pivot [m/s].
+    pub(super) fn obstacle_velocity(&self, k: usize) -> SVector<f64, D> {
+        SVector::from_column_slice(&self.state.obstacle_velocities[k * D..k * D + D])
+    }
+
+    /// The velocity of obstacle `k`'s surface at `x` [m/s], `posed` being the obstacle at the
+    /// end of the step: `v + omega x (x - pivot)` (exactly `v` when it does not turn).
+    pub(super) fn surface_velocity(
+        &self,
+        k: usize,
+        posed: &Obstacle<D>,
+        x: &SVector<f64, D>,
+    ) -> SVector<f64, D> {
+        let v = self.obstacle_velocity(k);
+        match self.spin(k, posed, x) {
+            Some(s) => v + s,
+            None => v,
+        }
+    }
+
+    /// `omega x (x - pivot)` of obstacle `k` at `x`, `None` when it does not turn.
+    fn spin(&self, k: usize, posed: &Obstacle<D>, x: &SVector<f64, D>) -> Option<SVector<f64, D>> {
+        let a = <Dim<D>>::ANGULAR;
+        let omega = &self.state.obstacle_angular_velocities[k * a..k * a + a];
+        if omega.iter().all(|w| *w == 0.0) {
+            return None;
+        }
+        let pivot = posed.pivot_point() + posed.translation;
+        Some(<Dim<D>>::spin_velocity(omega, &(x - pivot)))
+    }
+
+    /// Whether some obstacle turns in the step.
+    pub(super) fn obstacles_turn(&self) -> bool {
+        self.state
+            .obstacle_angular_velocities
+            .iter()
+            .any(|w| *w != 0.0)
+    }
+
+    /// The work over a step of `h` of forces (obstacle, point, force) that turning obstacles
+    /// apply, through their turning: `h f . (omega x r)`, summed [J]. The pivot's share,
+    /// `h F . v` on each obstacle's total force, is booked apart.
+    pub(super) fn spin_work(
+        &self,
+        h: f64,
+        posed: &[Obstacle<D>],
+        forces: impl IntoIterator<Item = (usize, SVector<f64, D>, SVector<f64, D>)>,
+    ) -> f64 {
+        forces
+            .into_iter()
+            .filter_map(|(k, x, f)| self.spin(k, &posed[k], &x).map(|s| h * f.dot(&s)))
+            .sum()
+    }
+
+    /// Checks the obstacle poses of a state against the model; a state from before rotating
+    /// obstacles (no rotations, no angular velocities) gets the model's.
+    pub(super) fn check_obstacle_state(&self, state: &mut State) -> Result<()> {
+        let n = self.model.obstacles.len();
+        let (rotations, angular) = initial_rotations(&self.model.obstacles);
+        if state.obstacle_rotations.is_empty() && state.obstacle_angular_velocities.is_empty() {
+            state.obstacle_rotations = rotations;
+            state.obstacle_angular_velocities = angular;
+        }
+        let checks = [
+            (
+                "obstacle_rotations",
+                state.obstacle_rotations.len(),
+                n * <Dim<D>>::ROTATION,
+            ),
+            (
+                "obstacle_angular_velocities",
+                state.obstacle_angular_velocities.len(),
+                n * <Dim<D>>::ANGULAR,
+            ),
+        ];
+        for (name, found, expected) in checks {
+            if found != expected {
+                return Err(invalid(
+                    &format!("state.{name}"),
+                    format!("{found} values"),
+                    &format!("{expected} values (the model's)"),
+                ));
+            }
+        }
+        Ok(())
+    }
+}
+
+impl Simulation<2> {
+    /// The angle obstacle `k` has turned about its pivot since t = 0 [rad] (counter-clockwise).
+    pub fn obstacle_angle(&self, k: usize) -> f64 {
+        self.state.obstacle_rotations[k]
+    }
+}
+
+/// The initial stored rotations and angular velocities of `obstacles` (their `rotation` and
+/// `angular_velocity`; none: zero).
+pub(super) fn initial_rotations<const D: usize>(obstacles: &[Obstacle<D>]) -> (Vec<f64>, Vec<f64>)
+where
+    Dim<D>: SpatialDim<D>,
+{
+    let mut rotations = Vec::with_capacity(obstacles.len() * <Dim<D>>::ROTATION);
+    let mut angular = Vec::with_capacity(obstacles.len() * <Dim<D>>::ANGULAR);
+    for o in obstacles {
+        rotations.extend(<Dim<D>>::rotation_values(&o.rotation));
+        if o.angular_velocity.is_empty() {
+            angular.extend(std::iter::repeat_n(0.0, <Dim<D>>::ANGULAR));
+        } else {
+            angular.extend(&o.angular_velocity);
+        }
+    }
+    (rotations, angular)
+}
+
+/// The turn (rotation vector) of a scheduled obstacle between `t0` and `t1`: the pieces' turns
+/// `omega_i dt_i` composed in time order.
+fn scheduled_turn<const D: usize>(o: &Obstacle<D>, t0: f64, t1: f64) -> Vec<f64>
+where
+    Dim<D>: SpatialDim<D>,
+{
+    let mut turn = vec![0.0; <Dim<D>>::ANGULAR];
+    let mut start = 0.0;
+    for piece in &o.motion {
+        let (a, b) = (t0.max(start), t1.min(piece.until));
+        if b > a && piece.angular_velocity.iter().any(|w| *w != 0.0) {
+            let step: Vec<f64> = piece.angular_velocity.iter().map(|w| w * (b - a)).collect();
+            turn = <Dim<D>>::compose_turns(&turn, &step);
+        }
+        start = piece.until;
+    }
+    turn
+}
+
+/// An obstacle's motion: a schedule's times increasing and finite, its velocities and angular
+/// velocities finite with 1 (2D) or 3 (3D) components; the constant angular velocity likewise;
+/// the pivot finite; the rotation a finite proper rotation.
+pub(super) fn validate_motion<const D: usize>(o: &Obstacle<D>) -> Result<()>
+where
+    Dim<D>: SpatialDim<D>,
+{
+    let a = <Dim<D>>::ANGULAR;
+    let angular = |key: &str, w: &[f64]| -> Result<()> {
+        if !w.is_empty() && (w.len() != a || w.iter().any(|x| !x.is_finite())) {
+            return Err(invalid(
+                key,
+                format!("{w:?}"),
+                &format!("{a} finite component(s) [rad/s]"),
+            ));
+        }
+        Ok(())
+    };
+    let mut previous = 0.0;
+    for (i, piece) in o.motion.iter().enumerate() {
+        let key = |what: &str| format!("obstacles.{}.motion.{i}.{what}", o.name);
+        if !(piece.until > previous && piece.until.is_finite()) {
+            return Err(invalid(
+                &key("until"),
+                piece.until,
+                &format!("a finite time [s] after the previous piece's end ({previous})"),
+            ));
+        }
+        previous = piece.until;
+        if piece.velocity.iter().any(|v| !v.is_finite()) {
+            return Err(invalid(
+                &key("velocity"),
+                format!("{:?}", piece.velocity.as_slice()),
+                "finite components [m/s]",
+            ));
+        }
+        angular(&key("angular_velocity"), &piece.angular_velocity)?;
+    }
+    let key = |what: &str| format!("obstacles.{}.{what}", o.name);
+    angular(&key("angular_velocity"), &o.angular_velocity)?;
+    if let Some(p) = o.pivot {
+        if p.iter().any(|x| !x.is_finite()) {
+            return Err(invalid(
+                &key("pivot"),
+                format!("{:?}", p.as_slice()),
+                "finite components [m]",
+            ));
+        }
+    }
+    let r = &o.rotation;
+    let orthogonal = (r.transpose() * r - SMatrix::<f64, D, D>::identity()).amax() < 1e-9;
+    if !(orthogonal && <Dim<D>>::det(r) > 0.0) {
+        return Err(invalid(
+            &key("rotation"),
+            format!("{:?}", r.as_slice()),
+            "a rotation matrix (orthonormal, determinant 1)",
+        ));
+    }
+    Ok(())
+}
