@@ -153,12 +153,10 @@ both_dims!(frictionless_upsetting_follows_the_homogeneous_flow);
 
 mod with_friction {
     #[test]
-    #[ignore = "Newton from rest with a sticking die turns a cell inside out at step 1 (see the test)"]
     fn d2() {
         super::friction_barrels_and_costs_force::<2>();
     }
     #[test]
-    #[ignore = "Newton from rest with a sticking die turns a cell inside out at step 1 (see the test)"]
     fn d3() {
         super::friction_barrels_and_costs_force::<3>();
     }
@@ -187,10 +185,9 @@ where
 
 /// The same with Coulomb 0.3 on the die: the top face is held, the free side barrels (its
 /// middle bulges beyond its top corner) and the force exceeds the frictionless one.
-/// Fails today: at step 1 (from rest, where the regularised viscosity is 1e4 times the
-/// flowing one) Newton's increments turn cells inside out, and twenty halvings do not
-/// recover ("a cell of an updated-Lagrangian body turned inside out"). Needs a secant
-/// (Kacanov) start for power laws before Newton.
+/// Measured: +3.2 % (2D) / +3.8 % (3D) force after 20 steps, the free side's middle 5.3 / 5.8
+/// mm beyond its top corner. From rest, Newton alone turned cells inside out at step 1 (the
+/// viscosity at rest is 1e4 times the flowing one); Kacanov's secant iterations first fix it.
 fn friction_barrels_and_costs_force<const D: usize>()
 where
     Dim<D>: SpatialDim<D>,
@@ -198,7 +195,7 @@ where
     let mut smooth = upsetting::<D>(0.0);
     let (_, _, free) = press(&mut smooth, 20);
     let mut rough = upsetting::<D>(0.3);
-    let (_, volume, held) = press(&mut rough, 20);
+    let (_, _, held) = press(&mut rough, 20);
     let x = rough.positions();
     let x0 = rough.reference_positions();
     let side = |y: f64| {
@@ -215,11 +212,10 @@ where
     };
     let (middle, top) = (side(0.5 * HEIGHT), side(HEIGHT));
     eprintln!(
-        "{D}D upsetting with friction: force {:.4e} against {:.4e} N frictionless, bulge {:.3e} m, volume {:+.3} %",
+        "{D}D upsetting with friction: force {:.4e} against {:.4e} N frictionless, bulge {:.3e} m",
         held.last().unwrap(),
         free.last().unwrap(),
-        middle - top,
-        100.0 * volume
+        middle - top
     );
     assert!(held.last().unwrap() > free.last().unwrap());
     assert!(middle - top > 1e-4, "middle {middle}, top {top}");

@@ -174,6 +174,7 @@ pub(super) fn cell_kernel<const D: usize>(
                 spin,
                 time_step: fields.time_step,
                 alpha: fields.alpha,
+                secant: fields.secant,
                 increment,
                 end_increment,
             },

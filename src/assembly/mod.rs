@@ -241,6 +241,8 @@ pub struct KernelFields<'a> {
     pub time_step: f64,
     /// alpha.
     pub alpha: f64,
+    /// Ask the laws for their secant tangent (see [`crate::material::PointKinematics::secant`]).
+    pub secant: bool,
 }
 
 /// Stiffness and mass matrices of linear bodies, assembled on the reference configuration.

@@ -202,6 +202,7 @@ mod tests {
             alpha: 0.75,
             increment: g,
             end_increment: g,
+            secant: false,
         }
     }
 

@@ -40,6 +40,10 @@ pub struct PointKinematics {
     /// The same from `t0` to `t1` (the configuration update), for the history at the end of
     /// the step [-].
     pub end_increment: Matrix3<f64>,
+    /// Whether Newton asks for the secant rather than the consistent tangent (laws whose
+    /// consistent tangent overshoots far from the solution, power-law flows: Kacanov's
+    /// iteration); laws that do not care ignore it.
+    pub secant: bool,
 }
 
 /// What a law returns at one point.

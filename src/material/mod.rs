@@ -329,6 +329,7 @@ pub(crate) mod tests {
             alpha: 0.75,
             increment: Matrix3::zeros(),
             end_increment: Matrix3::zeros(),
+            secant: false,
         }
     }
 

@@ -159,7 +159,9 @@ impl ConstitutiveLaw for NortonHoff {
             }
             viscosity[(i + 3, i + 3)] = mu;
         }
-        viscosity += d * d.transpose() * (4.0 / 3.0 * (m - 1.0) * mu / rate_eq2);
+        if !point.secant {
+            viscosity += d * d.transpose() * (4.0 / 3.0 * (m - 1.0) * mu / rate_eq2);
+        }
         if let (Some(out), Some(old)) = (new_history.first_mut(), history.first()) {
             *out = old + point.time_step * (2.0 / 3.0 * contraction).sqrt();
         }
@@ -189,6 +191,7 @@ mod tests {
             alpha: 1.0,
             increment: Matrix3::zeros(),
             end_increment: Matrix3::zeros(),
+            secant: false,
         }
     }
 
@@ -268,6 +271,7 @@ mod definiteness {
                 alpha: 0.75,
                 increment: Matrix3::zeros(),
                 end_increment: Matrix3::zeros(),
+                secant: false,
             };
             let r = law.evaluate(&p, &[0.0], &mut [0.0]);
             let v = r.viscosity;

@@ -22,6 +22,8 @@ use crate::friction::{threshold_change, ThresholdSample};
 
 /// Halvings of a Newton increment while the residual grows.
 const MAX_BACKTRACKS: usize = 4;
+/// The relative residual below which the laws' consistent tangents replace their secant ones.
+const SECANT_UNTIL: f64 = 1e-3;
 /// Halvings of a Newton increment that turned a cell inside out (1e-6 of it at most).
 const MAX_INVERSION_BACKTRACKS: usize = 20;
 
@@ -237,6 +239,7 @@ where
         let mut tangent_values: Vec<f64> = Vec::new();
         let mut material_history = self.state.material_history.clone();
         let mut kernel_damping_forces = Vec::new();
+        let mut secant = true;
         loop {
             let x_gap = end_positions(&self.reference, &start.gap_u0, v0, &v1, h);
             if contact_in_newton {
@@ -325,6 +328,7 @@ where
                         start: Some(u0),
                         end: Some(&u1),
                         weights: (d1 * h, alpha),
+                        secant,
                         time_step: h,
                         alpha,
                     },
@@ -384,6 +388,8 @@ where
             let scale = scale2.iter().fold(0.0f64, |m, s| m.max(s.sqrt()));
             let norm = free_norm2.sqrt();
             let rel = if scale > 0.0 { norm / scale } else { 0.0 };
+            // Kacanov's secant iteration until the residual is small, then Newton.
+            secant = rel > SECANT_UNTIL;
             if !rel.is_finite() {
                 return Err(Error::Unstable {
                     step,
