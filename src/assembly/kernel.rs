@@ -310,17 +310,20 @@ pub(super) fn cell_kernel<const D: usize>(
 }
 
 /// Shape values, spatial gradients, position and Jacobian determinant at a reference point.
+pub type PointShape<const D: usize> = (
+    [f64; MAX_NODES],
+    [SVector<f64, D>; MAX_NODES],
+    SVector<f64, D>,
+    f64,
+);
+
+/// Shape values, spatial gradients, position and Jacobian determinant at a reference point.
 pub fn spatial_gradients<const D: usize>(
     kind: ElementKind,
     cell: &[usize],
     x: &[SVector<f64, D>],
     xi: [f64; 3],
-) -> (
-    [f64; MAX_NODES],
-    [SVector<f64, D>; MAX_NODES],
-    SVector<f64, D>,
-    f64,
-)
+) -> PointShape<D>
 where
     Dim<D>: SpatialDim<D>,
 {
@@ -336,12 +339,7 @@ fn local_gradients<const D: usize>(
     kind: ElementKind,
     x: &[SVector<f64, D>],
     xi: [f64; 3],
-) -> (
-    [f64; MAX_NODES],
-    [SVector<f64, D>; MAX_NODES],
-    SVector<f64, D>,
-    f64,
-)
+) -> PointShape<D>
 where
     Dim<D>: SpatialDim<D>,
 {

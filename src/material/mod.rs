@@ -43,13 +43,7 @@ impl LinearElastic {
 
     /// Checks the ranges of the parameters.
     pub fn validate(&self) -> Result<()> {
-        let bad = |name: &str, found: f64, expected: &str| {
-            Err(Error::InvalidParameter {
-                name: name.into(),
-                found: found.to_string(),
-                expected: expected.into(),
-            })
-        };
+        let bad = out_of_range;
         if !(self.youngs_modulus > 0.0 && self.youngs_modulus.is_finite()) {
             return bad(
                 "youngs_modulus",
@@ -215,6 +209,15 @@ impl ConstitutiveLaw for Material {
             Material::NortonHoff(m) => m.evaluate(point, history, new_history),
         }
     }
+}
+
+/// The error of a law parameter out of its range.
+pub(crate) fn out_of_range(name: &str, found: f64, expected: &str) -> Result<()> {
+    Err(Error::InvalidParameter {
+        name: name.into(),
+        found: format!("{found:e}"),
+        expected: expected.into(),
+    })
 }
 
 /// Plane stress: eliminates the zz component so that `sigma_zz = 0` (static condensation);

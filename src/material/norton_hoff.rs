@@ -13,7 +13,7 @@ use serde::{Deserialize, Serialize};
 
 use super::{ConstitutiveLaw, PointKinematics, PointResponse};
 use crate::dim::{Voigt, VoigtMatrix};
-use crate::error::{Error, Result};
+use crate::error::Result;
 
 /// The default regularisation of the equivalent strain rate [1/s].
 pub const DEFAULT_RATE_REGULARIZATION: f64 = 1e-6;
@@ -54,13 +54,7 @@ impl NortonHoff {
 
     /// Checks the ranges of the parameters.
     pub fn validate(&self) -> Result<()> {
-        let bad = |name: &str, found: f64, expected: &str| {
-            Err(Error::InvalidParameter {
-                name: name.into(),
-                found: format!("{found:e}"),
-                expected: expected.into(),
-            })
-        };
+        let bad = super::out_of_range;
         let positive = |v: f64| v > 0.0 && v.is_finite();
         if !positive(self.consistency) {
             return bad(
