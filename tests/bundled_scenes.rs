@@ -295,3 +295,53 @@ fn block_slide(sim: &Simulation<2>, node: usize, theta: f64) -> f64 {
     // The pivot is the plate's point (0.1, 0) under the block's centre, (0.1, 0.05) at rest.
     -((x.x - 0.1) * theta.cos() + x.y * theta.sin())
 }
+
+/// The paper's second example (`octagon_compression.toml`), shortened to 10 of its 30
+/// increments: Norton-Hoff, no inertia, viscoplastic friction on the die. The billet's area
+/// is kept within 0.5 % (the volumetric penalty), the die's work is dissipated by the flow and
+/// the friction (energy account within 2 %), and the die's force lies between the plane-strain
+/// flow stress 2 K (2 v / H)^m over the contact width and over the billet's full width (10 m).
+#[test]
+fn octagon_compression() {
+    let (mut sim, _, _) = scene::<2>("octagon_compression", &[], [0.0, 0.0, 0.0]);
+    let area = |sim: &Simulation<2>| {
+        let mut mesh = sim.model().bodies[0].mesh.clone();
+        mesh.nodes = sim.positions();
+        softway::mesh::generators::measure(&mesh)
+    };
+    let area0 = area(&sim);
+    let mut iterations = Vec::new();
+    let mut force = 0.0;
+    for _ in 0..10 {
+        let r = sim
+            .step()
+            .unwrap_or_else(|e| panic!("t = {}: {e}", sim.state().time));
+        iterations.push(r.iterations);
+        force = r.contact_forces[0][1];
+    }
+    let change = area(&sim) / area0 - 1.0;
+    let error = common::energy_error(&sim);
+    // The contact width: the top's flat (the octagon's top side, 4.14 m, and what has spread).
+    let top: f64 = sim
+        .positions()
+        .iter()
+        .filter(|p| p.y > 10.0 - 0.1 * sim.state().time - 1e-3)
+        .map(|p| p.x)
+        .fold(0.0, f64::max);
+    let height = 10.0 - 0.1 * sim.state().time;
+    let flow = 2.0 * (2.0 * 0.1 / height).powf(0.1);
+    let estimate = flow * top;
+    eprintln!(
+        "octagon: area {:+.3} %, energy account {error:.2e}, die force {:.4} N against {estimate:.4} \
+         (contact width {top:.3} m), iterations per step {iterations:?}",
+        100.0 * change,
+        -force
+    );
+    assert!(change.abs() < 0.005, "{change}");
+    assert!(error < 0.02, "{error}");
+    assert!(
+        -force > estimate && -force < flow * 10.0,
+        "{force}: {estimate} .. {}",
+        flow * 10.0
+    );
+}
