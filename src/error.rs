@@ -119,6 +119,22 @@ pub enum Error {
         /// The energy growth or the non-finite quantity.
         detail: String,
     },
+    /// A cell of an updated-Lagrangian body turned inside out in every Newton iterate tried
+    /// (after halving the increment), at the step's finest cut.
+    #[error(
+        "a cell turned inside out at step {step} (t = {time:.6e} s): its Jacobian at t_alpha is \
+         not positive even after halving the Newton increment {halvings} times and cutting the \
+         step; use a smaller time_step, a finer mesh where the body deforms most, or a softer \
+         contact penalty"
+    )]
+    InvertedCell {
+        /// Step number (1-based).
+        step: usize,
+        /// Time at the end of the failed step [s].
+        time: f64,
+        /// Halvings of the increment tried.
+        halvings: usize,
+    },
     /// The sparse factorisation failed (matrix not positive definite).
     #[error("factorisation failed at step {step}: {message}")]
     Factorization {

@@ -17,6 +17,7 @@ use std::sync::Arc;
 
 mod kernel;
 
+#[allow(unused_imports)] // for `internals` users; the kernel itself calls it directly
 pub use kernel::spatial_gradients;
 use kernel::{cell_kernel, CellOutput};
 

@@ -233,3 +233,48 @@ fn the_material_part_alone_does_not_see_a_rotation() {
     });
     assert!((&k * &spin).amax() < 1e-9 * k.amax());
 }
+
+/// A cell turned inside out by the increment reports it: the energy is NaN (Newton backs off
+/// on it, then the step is cut, then `Error::InvertedCell`).
+#[test]
+fn an_inverted_cell_makes_the_energy_nan() {
+    let kind = ElementKind::Quad4;
+    let (x, u0, history) = setup::<2>(kind, 0.0);
+    let law = Hypoelastic::new(1e6, 0.3, 1000.0, RotationUpdate::HughesWinget).unwrap();
+    let body = BodyIntegration::new(Kinematics::PlaneStrain, Material::Hypoelastic(law));
+    let cell: Vec<usize> = (0..4).collect();
+    let energy = |u: &[f64]| {
+        let mut e = 0.0;
+        let mut force = vec![0.0; 8];
+        let mut new_history = vec![0.0; history.len()];
+        let fields = KernelFields {
+            displacement: Some(u),
+            start: Some(&u0),
+            ..Default::default()
+        };
+        let out = CellOutput {
+            history: &history,
+            new_history: Some(&mut new_history),
+            force: Some(&mut force),
+            energy: Some(&mut e),
+            ..Default::default()
+        };
+        cell_kernel::<2>(kind, &cell, &x, &body, &fields, out);
+        e
+    };
+    assert!(energy(&u0).is_finite());
+    // Mirror the cell through its first node: every Jacobian turns negative.
+    let mirrored: Vec<f64> = (0..8)
+        .map(|i| {
+            let (node, k) = (i / 2, i % 2);
+            let p = x[node][k] + u0[i];
+            let origin = x[0][k] + u0[k];
+            if k == 0 {
+                u0[i] - 2.0 * (p - origin)
+            } else {
+                u0[i]
+            }
+        })
+        .collect();
+    assert!(energy(&mirrored).is_nan());
+}

@@ -293,6 +293,7 @@ where
             let code = match failure.error {
                 Error::NotConverged { .. }
                 | Error::Unstable { .. }
+                | Error::InvertedCell { .. }
                 | Error::Factorization { .. }
                 | Error::Output { .. } => FAILED,
                 _ => {

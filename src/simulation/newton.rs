@@ -347,12 +347,10 @@ where
                         backtracks += 1;
                         continue;
                     }
-                    return Err(Error::Unstable {
+                    return Err(Error::InvertedCell {
                         step,
                         time: t0 + h,
-                        detail: "a cell of an updated-Lagrangian body turned inside out (its \
-                                 Jacobian is not positive at t_alpha)"
-                            .into(),
+                        halvings: backtracks,
                     });
                 }
                 tangent_values = integrated.tangent.unwrap_or_default();

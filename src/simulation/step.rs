@@ -61,11 +61,12 @@ where
         last_piece: bool,
     ) -> Result<StepReport> {
         match self.advance_once(h, recorder, last_piece) {
-            Err(Error::NotConverged { .. }) if depth < MAX_CUTS => {
+            Err(Error::NotConverged { .. } | Error::InvertedCell { .. }) if depth < MAX_CUTS => {
                 recorder.log(
                     self,
                     &format!(
-                        "step {} at t = {:.6e} s: no convergence with h = {h:.3e} s, cutting it in two",
+                        "step {} at t = {:.6e} s: no convergence (or a cell turned inside out) \
+                         with h = {h:.3e} s, cutting it in two",
                         self.state.step + 1,
                         self.state.time
                     ),
