@@ -154,14 +154,7 @@ fn rolling_ring() {
             v.push(mean(&sim, &sim.state().velocity));
         }
     }
-    let n = t.len() as f64;
-    let (tm, vm) = (t.iter().sum::<f64>() / n, v.iter().sum::<f64>() / n);
-    let a = t
-        .iter()
-        .zip(&v)
-        .map(|(x, y)| (x - tm) * (y - vm))
-        .sum::<f64>()
-        / t.iter().map(|x| (x - tm).powi(2)).sum::<f64>();
+    let a = common::least_squares_slope(&t, &v);
     let k = (0.05f64.powi(2) + 0.1f64.powi(2)) / (2.0 * 0.01);
     let expected = 9.81 * 20f64.to_radians().sin() / (1.0 + k);
     let travel = mean(&sim, &sim.state().displacement);

@@ -144,14 +144,7 @@ where
             v.push(centre(&sim).1);
         }
     }
-    let n = t.len() as f64;
-    let (tm, vm) = (t.iter().sum::<f64>() / n, v.iter().sum::<f64>() / n);
-    let slope = t
-        .iter()
-        .zip(&v)
-        .map(|(a, b)| (a - tm) * (b - vm))
-        .sum::<f64>()
-        / t.iter().map(|a| (a - tm).powi(2)).sum::<f64>();
+    let slope = common::least_squares_slope(&t, &v);
     let k = (0.05f64.powi(2) + 0.1f64.powi(2)) / (2.0 * 0.1f64.powi(2));
     let expected = G * degrees.to_radians().sin() / (1.0 + k);
     let error = slope / expected - 1.0;

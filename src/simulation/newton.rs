@@ -22,6 +22,14 @@ use crate::friction::{threshold_change, ThresholdSample};
 
 /// Halvings of a Newton increment while the residual grows.
 const MAX_BACKTRACKS: usize = 4;
+/// Takes back half of the last Newton increment (backtracking).
+fn halve_last_increment(v1: &mut [f64], last_increment: &mut [f64]) {
+    for (v, d) in v1.iter_mut().zip(last_increment.iter_mut()) {
+        *d *= 0.5;
+        *v -= *d;
+    }
+}
+
 /// The relative residual below which the laws' consistent tangents replace their secant ones
 /// (on the octagon of the paper's example 2: 17 iterations per step at 1e-1, 30 at 1e-3).
 const SECANT_UNTIL: f64 = 1e-1;
@@ -340,10 +348,7 @@ where
                     // A cell turned inside out at this iterate: back off along the last
                     // increment, or give up on the step (the step is cut).
                     if !last_increment.is_empty() && backtracks < MAX_INVERSION_BACKTRACKS {
-                        for i in 0..ndof {
-                            last_increment[i] *= 0.5;
-                            v1[i] -= last_increment[i];
-                        }
+                        halve_last_increment(&mut v1, &mut last_increment);
                         backtracks += 1;
                         continue;
                     }
@@ -403,10 +408,7 @@ where
                 && norm > previous_norm
                 && backtracks < MAX_BACKTRACKS
             {
-                for i in 0..ndof {
-                    last_increment[i] *= 0.5;
-                    v1[i] -= last_increment[i];
-                }
+                halve_last_increment(&mut v1, &mut last_increment);
                 backtracks += 1;
                 continue;
             }

@@ -74,6 +74,17 @@ where
         / sim.energy_reference()
 }
 
+/// The least-squares slope of `y` against `x` (an acceleration from sampled velocities).
+pub fn least_squares_slope(x: &[f64], y: &[f64]) -> f64 {
+    let n = x.len() as f64;
+    let (xm, ym) = (x.iter().sum::<f64>() / n, y.iter().sum::<f64>() / n);
+    x.iter()
+        .zip(y)
+        .map(|(a, b)| (a - xm) * (b - ym))
+        .sum::<f64>()
+        / x.iter().map(|a| (a - xm).powi(2)).sum::<f64>()
+}
+
 /// A vector with the first D entries of `v`.
 pub fn vec_d<const D: usize>(v: [f64; 3]) -> SVector<f64, D> {
     SVector::from_fn(|i, _| v[i])
