@@ -1,7 +1,7 @@
 //! Whole files or none: every output is written to `<file>.tmp` beside it and renamed over
 //! `<file>` once complete, so that a run killed at any moment leaves each output complete or
 //! absent (a `.tmp` left behind by a killed run is partial; the next run into the folder
-//! removes it).
+//! removes those of the kinds it writes).
 
 use std::ffi::OsString;
 use std::fs::File;
@@ -42,16 +42,20 @@ pub(crate) fn write_atomic(
     result
 }
 
-/// Removes the `*.tmp` files a killed run may have left in `dir` (best effort; a missing
-/// folder is fine).
-pub(crate) fn remove_temporaries(dir: &Path) {
+/// Removes the temporaries a killed run may have left in `dir`: the files whose names end with
+/// one of `endings` (e.g. `.vtu.tmp`; best effort, a missing folder is fine). Only the
+/// run's own kinds: a `--rerun` recording under way in the same folder is left alone.
+pub(crate) fn remove_temporaries(dir: &Path, endings: &[&str]) {
     let Ok(entries) = std::fs::read_dir(dir) else {
         return;
     };
     for entry in entries.flatten() {
-        let path = entry.path();
-        if path.extension().is_some_and(|e| e == "tmp") && path.is_file() {
-            let _ = std::fs::remove_file(path);
+        let name = entry.file_name();
+        let Some(name) = name.to_str() else {
+            continue;
+        };
+        if endings.iter().any(|e| name.ends_with(e)) && entry.path().is_file() {
+            let _ = std::fs::remove_file(entry.path());
         }
     }
 }
@@ -83,8 +87,11 @@ mod tests {
         assert_eq!(std::fs::read(&path).unwrap(), b"complete");
         assert!(!tmp_path(&path).exists());
         std::fs::write(tmp_path(&path), b"stale").unwrap();
-        remove_temporaries(dir.path());
+        let other = dir.path().join("run.rrd.tmp");
+        std::fs::write(&other, b"a recording under way").unwrap();
+        remove_temporaries(dir.path(), &[".txt.tmp"]);
         assert!(!tmp_path(&path).exists());
         assert!(path.exists());
+        assert!(other.exists());
     }
 }

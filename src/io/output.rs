@@ -375,7 +375,7 @@ fn fail(error: Error) -> Box<RunFailure> {
 }
 
 /// Creates `out` (and `vtk/`, `checkpoints/` as needed) and removes the partial `*.tmp`
-/// files a killed run may have left there.
+/// files of the kinds a run writes that a killed run may have left there.
 fn prepare(out: &Path, vtk: bool, checkpoints: bool) -> Result<()> {
     let create = |p: &Path| {
         std::fs::create_dir_all(p).map_err(|source| Error::Output {
@@ -384,11 +384,14 @@ fn prepare(out: &Path, vtk: bool, checkpoints: bool) -> Result<()> {
         })
     };
     create(out)?;
-    remove_temporaries(out);
-    for (on, folder) in [(vtk, "vtk"), (checkpoints, "checkpoints")] {
+    remove_temporaries(out, &[".csv.tmp", ".json.tmp", ".pvd.tmp"]);
+    for (on, folder, ending) in [
+        (vtk, "vtk", ".vtu.tmp"),
+        (checkpoints, "checkpoints", ".ckpt.tmp"),
+    ] {
         if on {
             create(&out.join(folder))?;
-            remove_temporaries(&out.join(folder));
+            remove_temporaries(&out.join(folder), &[ending]);
         }
     }
     Ok(())
