@@ -375,7 +375,8 @@ fn fail(error: Error) -> Box<RunFailure> {
 }
 
 /// Creates `out` (and `vtk/`, `checkpoints/` as needed) and removes the partial `*.tmp`
-/// files of the kinds a run writes that a killed run may have left there.
+/// files of the kinds a run writes that a killed run may have left there, and an earlier
+/// run's `summary.json`.
 fn prepare(out: &Path, vtk: bool, checkpoints: bool) -> Result<()> {
     let create = |p: &Path| {
         std::fs::create_dir_all(p).map_err(|source| Error::Output {
@@ -385,6 +386,14 @@ fn prepare(out: &Path, vtk: bool, checkpoints: bool) -> Result<()> {
     };
     create(out)?;
     remove_temporaries(out, &[".csv.tmp", ".json.tmp", ".pvd.tmp"]);
+    // An earlier run's summary: summary.json is there only once this run has ended.
+    let summary = out.join("summary.json");
+    if summary.is_file() {
+        std::fs::remove_file(&summary).map_err(|source| Error::Output {
+            file: summary.clone(),
+            source,
+        })?;
+    }
     for (on, folder, ending) in [
         (vtk, "vtk", ".vtu.tmp"),
         (checkpoints, "checkpoints", ".ckpt.tmp"),
