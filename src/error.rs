@@ -157,6 +157,15 @@ pub enum Error {
     /// The Rerun recording could not be created, written or flushed (feature `rerun`).
     #[error("Rerun recording: {0}")]
     Recording(String),
+    /// A checkpoint cannot be read: not a checkpoint, another format version, truncated,
+    /// corrupted (its checksum differs), or it does not fit the simulation it describes.
+    #[error("{file}: {problem}")]
+    Checkpoint {
+        /// The checkpoint file.
+        file: PathBuf,
+        /// What is wrong and what to do.
+        problem: String,
+    },
 }
 
 /// `Result` with softway's [`Error`].

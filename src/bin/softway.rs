@@ -1,15 +1,25 @@
-//! The `softway` command line: `run`, `check`, `resume` (see scene-format.md).
+//! The `softway` command line: `run`, `check`, `resume` (see scene-format.md). SIGINT and
+//! SIGTERM end a run cleanly (outputs, a checkpoint, the recording); a second one at once.
 
 use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
+use std::sync::Arc;
 
 use clap::{Parser, Subcommand};
 use indicatif::{ProgressBar, ProgressStyle};
 use softway::dim::{Dim, SpatialDim};
-use softway::io::output::{self, Progress};
+use softway::io::checkpoint::{self, AnyCheckpoint, Checkpoint};
+use softway::io::output::{self, Progress, RunOptions};
 use softway::io::scene::{self, LoadedScene};
 use softway::Error;
+
+#[cfg(unix)]
+use signal_hook::{
+    consts::{SIGINT, SIGTERM},
+    iterator::Signals,
+};
 
 #[derive(Parser)]
 #[command(
@@ -52,13 +62,22 @@ enum Command {
         #[arg(long = "set", value_name = "KEY=VALUE")]
         set: Vec<String>,
     },
-    /// Continue a run from a checkpoint.
+    /// Continue a run from a checkpoint; its history.csv ends as the uninterrupted run's.
     Resume {
-        /// The checkpoint file.
+        /// The checkpoint file (<out>/checkpoints/step_<N>.ckpt).
         checkpoint: PathBuf,
-        /// Output folder.
+        /// Output folder [default: the run's, the folder that holds checkpoints/].
         #[arg(long)]
         out: Option<PathBuf>,
+        /// Record the rest of the run to this Rerun file.
+        #[arg(long, value_name = "FILE.rrd")]
+        rerun: Option<PathBuf>,
+        /// Print nothing but errors.
+        #[arg(long)]
+        quiet: bool,
+        /// Write checkpoints every N steps [default: as the run that wrote the checkpoint].
+        #[arg(long, value_name = "N")]
+        checkpoint_every: Option<usize>,
     },
 }
 
@@ -85,11 +104,8 @@ fn main() -> ExitCode {
                         .into(),
                 });
             }
-            if checkpoint_every.is_some() {
-                return invalid(&Error::NotAvailable {
-                    feature: "--checkpoint-every".into(),
-                    detail: "checkpoints land in a later version; run without it".into(),
-                });
+            if checkpoint_every == Some(0) {
+                return invalid(&zero_checkpoints());
             }
             let loaded = match scene::load(&scene, &set) {
                 Ok(l) => l,
@@ -100,10 +116,16 @@ fn main() -> ExitCode {
                 .and_then(|s| s.to_str())
                 .unwrap_or("scene")
                 .to_string();
-            let out = out.unwrap_or_else(|| Path::new("out").join(&stem));
+            let job = Job {
+                input: scene.clone(),
+                out: out.unwrap_or_else(|| Path::new("out").join(&stem)),
+                quiet,
+                rerun,
+                checkpoint_every: checkpoint_every.unwrap_or(0),
+            };
             match loaded.dimension() {
-                Ok(2) => run::<2>(&loaded, &out, &stem, quiet, rerun.as_deref()),
-                Ok(_) => run::<3>(&loaded, &out, &stem, quiet, rerun.as_deref()),
+                Ok(2) => run::<2>(&loaded, &stem, &job),
+                Ok(_) => run::<3>(&loaded, &stem, &job),
                 Err(e) => invalid(&e),
             }
         }
@@ -118,10 +140,56 @@ fn main() -> ExitCode {
                 Err(e) => invalid(&e),
             }
         }
-        Command::Resume { .. } => invalid(&Error::NotAvailable {
-            feature: "softway resume".into(),
-            detail: "checkpoints land in a later version".into(),
-        }),
+        Command::Resume {
+            checkpoint: file,
+            out,
+            rerun,
+            quiet,
+            checkpoint_every,
+        } => {
+            #[cfg(not(feature = "rerun"))]
+            if rerun.is_some() {
+                return invalid(&Error::NotAvailable {
+                    feature: "--rerun".into(),
+                    detail: "this softway was built without the `rerun` cargo feature; \
+                             rebuild with `--features rerun` or run without it"
+                        .into(),
+                });
+            }
+            if checkpoint_every == Some(0) {
+                return invalid(&zero_checkpoints());
+            }
+            let ckpt = match checkpoint::read(&file) {
+                Ok(c) => c,
+                Err(e) => return invalid(&e),
+            };
+            let out = out.unwrap_or_else(|| checkpoint::default_out(&file));
+            let mut job = Job {
+                input: file,
+                out,
+                quiet,
+                rerun,
+                checkpoint_every: 0,
+            };
+            match ckpt {
+                AnyCheckpoint::Two(c) => {
+                    job.checkpoint_every = checkpoint_every.unwrap_or(c.run.checkpoint_every);
+                    resume::<2>(*c, &job)
+                }
+                AnyCheckpoint::Three(c) => {
+                    job.checkpoint_every = checkpoint_every.unwrap_or(c.run.checkpoint_every);
+                    resume::<3>(*c, &job)
+                }
+            }
+        }
+    }
+}
+
+fn zero_checkpoints() -> Error {
+    Error::InvalidParameter {
+        name: "--checkpoint-every".into(),
+        found: "0".into(),
+        expected: "a number of steps, at least 1".into(),
     }
 }
 
@@ -209,13 +277,18 @@ where
     ExitCode::SUCCESS
 }
 
-fn run<const D: usize>(
-    loaded: &LoadedScene,
-    out: &Path,
-    stem: &str,
+/// What `run` and `resume` share: where the outputs go and how.
+struct Job {
+    /// The scene or checkpoint file (named by messages about it).
+    input: PathBuf,
+    out: PathBuf,
     quiet: bool,
-    rerun: Option<&Path>,
-) -> ExitCode
+    rerun: Option<PathBuf>,
+    /// 0: no checkpoints.
+    checkpoint_every: usize,
+}
+
+fn run<const D: usize>(loaded: &LoadedScene, stem: &str, job: &Job) -> ExitCode
 where
     Dim<D>: SpatialDim<D>,
 {
@@ -223,12 +296,93 @@ where
         Ok(s) => s,
         Err(e) => return invalid_in(&loaded.path, &e),
     };
-    let mut recorder = match CliRecorder::new(&scene, rerun) {
+    execute(&scene, job, |options, progress, recorder| {
+        output::run_with::<D>(&scene, &job.out, stem, options, progress, recorder)
+    })
+}
+
+fn resume<const D: usize>(checkpoint: Checkpoint<D>, job: &Job) -> ExitCode
+where
+    Dim<D>: SpatialDim<D>,
+{
+    let scene = checkpoint.scene();
+    execute(&scene, job, move |options, progress, recorder| {
+        output::resume::<D>(checkpoint, &job.out, options, progress, recorder)
+    })
+}
+
+/// SIGINT and SIGTERM: the first sets `stop` (the run finishes its step, writes its outputs and
+/// a checkpoint, and exits with 128 + the signal's number); a second one exits at once. A
+/// second one within 100 ms is the same interrupt delivered twice (`timeout` signals the
+/// process and then its group) and is ignored.
+struct Interrupts {
+    stop: Arc<AtomicBool>,
+    signal: Arc<AtomicUsize>,
+}
+
+impl Interrupts {
+    fn install() -> Self {
+        let stop = Arc::new(AtomicBool::new(false));
+        let signal = Arc::new(AtomicUsize::new(0));
+        #[cfg(unix)]
+        match Signals::new([SIGINT, SIGTERM]) {
+            Ok(mut signals) => {
+                let (stop, signal) = (Arc::clone(&stop), Arc::clone(&signal));
+                std::thread::spawn(move || {
+                    let mut first: Option<std::time::Instant> = None;
+                    for sig in signals.forever() {
+                        match first {
+                            None => {
+                                first = Some(std::time::Instant::now());
+                                signal.store(sig as usize, Ordering::SeqCst);
+                                stop.store(true, Ordering::SeqCst);
+                            }
+                            Some(t) if t.elapsed() >= std::time::Duration::from_millis(100) => {
+                                std::process::exit(128 + sig)
+                            }
+                            Some(_) => {}
+                        }
+                    }
+                });
+            }
+            Err(e) => eprintln!(
+                "warning: cannot handle SIGINT and SIGTERM ({e}): they end the run at once"
+            ),
+        }
+        Interrupts { stop, signal }
+    }
+
+    /// The exit status of an interrupted run: 128 + the signal's number (130 for SIGINT).
+    fn status(&self) -> u8 {
+        match self.signal.load(Ordering::SeqCst) {
+            0 => 130,
+            sig => (128 + sig).min(255) as u8,
+        }
+    }
+}
+
+fn execute<const D: usize>(
+    scene: &softway::io::scene::Scene<D>,
+    job: &Job,
+    start: impl FnOnce(
+        RunOptions,
+        &mut dyn FnMut(Progress),
+        &mut dyn softway::recording::Recorder<D>,
+    ) -> Result<output::Summary, Box<output::RunFailure>>,
+) -> ExitCode
+where
+    Dim<D>: SpatialDim<D>,
+{
+    let out = job.out.as_path();
+    // The recording is written beside its name and renamed once complete.
+    let recording = job.rerun.as_deref().map(|f| (tmp_path(f), f));
+    let mut recorder = match CliRecorder::new(scene, recording.as_ref().map(|r| r.0.as_path())) {
         Ok(r) => r,
         Err(e) => return invalid(&e),
     };
+    let interrupts = Interrupts::install();
     // scene-format.md: nothing but errors with --quiet or when stderr is not a terminal.
-    let show = !quiet && std::io::stderr().is_terminal();
+    let show = !job.quiet && std::io::stderr().is_terminal();
     let bar = if show {
         let bar = ProgressBar::new(1000);
         bar.set_style(
@@ -240,7 +394,10 @@ where
         None
     };
     let started = std::time::Instant::now();
+    let mut first_step = None;
     let mut on_progress = |p: Progress| {
+        // A resumed run starts at its checkpoint's step.
+        let first = *first_step.get_or_insert(p.steps.saturating_sub(1));
         if let Some(bar) = &bar {
             let frac = if p.end_time > 0.0 {
                 p.time / p.end_time
@@ -248,19 +405,29 @@ where
                 1.0
             };
             bar.set_position((frac * 1000.0) as u64);
-            let rate = p.steps as f64 / started.elapsed().as_secs_f64().max(1e-9);
+            let rate = (p.steps - first) as f64 / started.elapsed().as_secs_f64().max(1e-9);
             bar.set_message(format!(
                 "{:.4e} / {:.4e} s, {:.1} steps/s, {} iterations in the last step",
                 p.time, p.end_time, rate, p.iterations
             ));
         }
     };
-    let result = output::run::<D>(&scene, out, stem, &mut on_progress, recorder.as_dyn());
+    let options = RunOptions {
+        checkpoint_every: job.checkpoint_every,
+        stop: Some(&*interrupts.stop),
+    };
+    let result = start(options, &mut on_progress, recorder.as_dyn());
     if let Some(bar) = bar {
         bar.finish_and_clear();
     }
     // Completes the .rrd file (whatever the outcome of the run: a failed run is worth replaying).
-    let recorded = recorder.finish();
+    let recorded = recorder.finish().and_then(|()| match &recording {
+        Some((tmp, file)) => std::fs::rename(tmp, file).map_err(|source| Error::Output {
+            file: file.to_path_buf(),
+            source,
+        }),
+        None => Ok(()),
+    });
     let warnings = match &result {
         Ok(summary) => &summary.warnings,
         Err(failure) => &failure.summary.warnings,
@@ -275,6 +442,21 @@ where
     }
     match result {
         Ok(_) if recorded.is_err() => ExitCode::from(FAILED),
+        Ok(summary) if summary.status == "interrupted" => {
+            if show {
+                let resume = match &summary.last_checkpoint {
+                    Some(c) => format!("resume with `softway resume {}`", out.join(c).display()),
+                    None => "run with --checkpoint-every N to be able to resume".into(),
+                };
+                eprintln!(
+                    "interrupted at step {} (t = {:.6e} s); outputs in {}; {resume}",
+                    summary.steps,
+                    summary.final_time,
+                    out.display()
+                );
+            }
+            ExitCode::from(interrupts.status())
+        }
         Ok(summary) => {
             if show {
                 eprintln!(
@@ -298,10 +480,10 @@ where
                 | Error::Output { .. } => FAILED,
                 _ => {
                     // Invalid input: nothing is run, so nothing stays written.
-                    if let Some(file) = rerun {
-                        let _ = std::fs::remove_file(file);
+                    if let Some((tmp, _)) = &recording {
+                        let _ = std::fs::remove_file(tmp);
                     }
-                    return invalid_in(&loaded.path, &failure.error);
+                    return invalid_in(&job.input, &failure.error);
                 }
             };
             eprintln!("error: {}", failure.error);
@@ -315,6 +497,13 @@ where
             ExitCode::from(code)
         }
     }
+}
+
+/// `<path>.tmp`: where a file is written before it is renamed to `path`.
+fn tmp_path(path: &Path) -> PathBuf {
+    let mut s = path.as_os_str().to_owned();
+    s.push(".tmp");
+    PathBuf::from(s)
 }
 
 /// The recorder of `run`: a [`RerunRecorder`](softway::recording::RerunRecorder) writing the

@@ -1,14 +1,17 @@
-//! Running a scene and writing its outputs: `history.csv`, `summary.json`, VTK files.
+//! Running a scene and writing its outputs: `history.csv`, `summary.json`, VTK files,
+//! checkpoints (`super::checkpoint`); resuming from a checkpoint.
 
-use std::fs::File;
-use std::io::{BufWriter, Write};
+use std::fs::{File, OpenOptions};
+use std::io::Write;
 use std::path::{Path, PathBuf};
-
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Instant;
 
 use nalgebra::SVector;
 use serde::Serialize;
 
+use super::atomic::{remove_temporaries, write_atomic};
+use super::checkpoint::{self, Checkpoint, RunRecord};
 use super::scene::Scene;
 use super::vtk::{self, VtkCellKind, VtkField, VtkPiece};
 use crate::assembly::von_mises;
@@ -35,7 +38,7 @@ pub struct Summary {
     pub energy_drift: f64,
     /// Warnings (stability window, ...).
     pub warnings: Vec<String>,
-    /// "completed" or "failed".
+    /// "completed", "failed" or "interrupted" (SIGINT or SIGTERM, or the caller's stop flag).
     pub status: String,
     /// The error of a failed run.
     pub error: Option<String>,
@@ -47,6 +50,9 @@ pub struct Summary {
     pub external_work: f64,
     /// Cumulative dissipation [J].
     pub dissipated_energy: f64,
+    /// The last checkpoint this run wrote, relative to the output folder
+    /// (`checkpoints/step_<N>.ckpt`), if any.
+    pub last_checkpoint: Option<String>,
 }
 
 /// Progress of a run, for progress bars.
@@ -71,34 +77,48 @@ pub struct RunFailure {
     pub error: Error,
 }
 
+/// `history.csv`: written whole at the start (header and the rows so far), then one row
+/// appended per history step with a single write, so that a killed run leaves whole rows.
 struct History {
-    file: BufWriter<File>,
+    file: File,
     path: PathBuf,
+    /// Everything written, for checkpoints (kept only when they are on).
+    text: Option<String>,
 }
 
 impl History {
-    fn create(path: PathBuf, header: &[String]) -> Result<Self> {
-        let file = File::create(&path).map_err(|source| Error::Output {
+    fn start(path: PathBuf, text: String, keep: bool) -> Result<Self> {
+        let error = |source| Error::Output {
             file: path.clone(),
             source,
-        })?;
-        let mut h = History {
-            file: BufWriter::new(file),
-            path,
         };
-        h.row(header.iter().map(String::as_str))?;
-        Ok(h)
+        write_atomic(&path, false, |w| w.write_all(text.as_bytes())).map_err(error)?;
+        let file = OpenOptions::new().append(true).open(&path).map_err(error)?;
+        Ok(History {
+            file,
+            path,
+            text: keep.then_some(text),
+        })
     }
 
-    fn row<'a>(&mut self, cells: impl Iterator<Item = &'a str>) -> Result<()> {
-        let line: Vec<&str> = cells.collect();
-        writeln!(self.file, "{}", line.join(","))
-            .and_then(|_| self.file.flush())
+    fn row(&mut self, cells: &[String]) -> Result<()> {
+        let line = line(cells);
+        self.file
+            .write_all(line.as_bytes())
             .map_err(|source| Error::Output {
                 file: self.path.clone(),
                 source,
-            })
+            })?;
+        if let Some(text) = &mut self.text {
+            text.push_str(&line);
+        }
+        Ok(())
     }
+}
+
+/// One CSV line.
+fn line(cells: &[String]) -> String {
+    cells.join(",") + "\n"
 }
 
 fn number(x: f64) -> String {
@@ -299,17 +319,39 @@ where
 
 fn write_json(path: &Path, summary: &Summary) -> Result<()> {
     let text = serde_json::to_string_pretty(summary).unwrap_or_else(|_| "{}".into());
-    let tmp = path.with_extension("json.tmp");
-    std::fs::write(&tmp, text + "\n")
-        .and_then(|_| std::fs::rename(&tmp, path))
-        .map_err(|source| Error::Output {
+    write_atomic(path, false, |w| w.write_all((text + "\n").as_bytes())).map_err(|source| {
+        Error::Output {
             file: path.to_path_buf(),
             source,
-        })
+        }
+    })
+}
+
+/// Options of a run beyond its scene.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct RunOptions<'a> {
+    /// Write `<out>/checkpoints/step_<N>.ckpt` every this many steps (0: no checkpoints).
+    pub checkpoint_every: usize,
+    /// Read between steps: once it is true the run stops after the step under way, writes
+    /// its outputs (and a checkpoint of that step when checkpoints are on) and returns a
+    /// summary with status "interrupted". A signal handler sets it.
+    pub stop: Option<&'a AtomicBool>,
+}
+
+/// What the run loop carries from step to step besides the simulation's state (saved in
+/// checkpoints as a [`RunRecord`]).
+struct Carried {
+    summary: Summary,
+    last_history: f64,
+    next_vtk: f64,
+    turned: Vec<f64>,
+    pvd: Vec<(f64, usize, String)>,
+    /// Wall-clock seconds of earlier sessions (a resumed run's).
+    wall_before: f64,
 }
 
 /// Runs a validated scene to its end time, writing the outputs into `out` (created if
-/// missing). The history is flushed row by row, so a failed run leaves everything up to its
+/// missing). The history is written row by row, so a failed run leaves everything up to its
 /// last good step. `recorder` observes every step and iteration
 /// ([`NullRecorder`](crate::recording::NullRecorder) for none); it never changes the results.
 pub fn run<const D: usize>(
@@ -322,61 +364,247 @@ pub fn run<const D: usize>(
 where
     Dim<D>: SpatialDim<D>,
 {
-    let start = Instant::now();
-    let fail = |error: Error| {
-        Box::new(RunFailure {
-            summary: Box::new(empty_summary()),
-            error,
-        })
-    };
-    let mut sim = scene.simulation().map_err(fail)?;
-    let warnings: Vec<String> = sim.warnings().to_vec();
+    run_with(scene, out, stem, RunOptions::default(), progress, recorder)
+}
+
+fn fail(error: Error) -> Box<RunFailure> {
+    Box::new(RunFailure {
+        summary: Box::new(empty_summary()),
+        error,
+    })
+}
+
+/// Creates `out` (and `vtk/`, `checkpoints/` as needed) and removes the partial `*.tmp`
+/// files of the kinds a run writes that a killed run may have left there, and an earlier
+/// run's `summary.json`.
+fn prepare(out: &Path, vtk: bool, checkpoints: bool) -> Result<()> {
     let create = |p: &Path| {
         std::fs::create_dir_all(p).map_err(|source| Error::Output {
             file: p.to_path_buf(),
             source,
         })
     };
-    create(out).map_err(fail)?;
-    let vtk_on = scene.output.vtk_interval > 0.0;
-    if vtk_on {
-        create(&out.join("vtk")).map_err(fail)?;
-    }
-    let header = history_header(scene);
-    let mut history = History::create(out.join("history.csv"), &header).map_err(fail)?;
-    history
-        .row(history_row(&sim, scene, None).iter().map(String::as_str))
-        .map_err(fail)?;
-
-    let pvd_path = out.join(format!("{stem}.pvd"));
-    let mut pvd: Vec<(f64, usize, String)> = Vec::new();
-    let write_frame = |sim: &Simulation<D>,
-                       pvd: &mut Vec<(f64, usize, String)>,
-                       contacts: &[(usize, f64, f64)]|
-     -> Result<()> {
-        for (part, f) in write_vtk(sim, out, contacts)?.into_iter().enumerate() {
-            pvd.push((sim.state().time, part, f));
-        }
-        vtk::write_pvd_parts(&pvd_path, pvd).map_err(|source| Error::Output {
-            file: pvd_path.clone(),
+    create(out)?;
+    remove_temporaries(out, &[".csv.tmp", ".json.tmp", ".pvd.tmp"]);
+    // An earlier run's summary: summary.json is there only once this run has ended.
+    let summary = out.join("summary.json");
+    if summary.is_file() {
+        std::fs::remove_file(&summary).map_err(|source| Error::Output {
+            file: summary.clone(),
             source,
-        })
+        })?;
+    }
+    for (on, folder, ending) in [
+        (vtk, "vtk", ".vtu.tmp"),
+        (checkpoints, "checkpoints", ".ckpt.tmp"),
+    ] {
+        if on {
+            create(&out.join(folder))?;
+            remove_temporaries(&out.join(folder), &[ending]);
+        }
+    }
+    Ok(())
+}
+
+/// Like [`run`], with checkpoints and a stop flag ([`RunOptions`]).
+pub fn run_with<const D: usize>(
+    scene: &Scene<D>,
+    out: &Path,
+    stem: &str,
+    options: RunOptions,
+    progress: &mut dyn FnMut(Progress),
+    recorder: &mut dyn Recorder<D>,
+) -> std::result::Result<Summary, Box<RunFailure>>
+where
+    Dim<D>: SpatialDim<D>,
+{
+    let start = Instant::now();
+    let sim = scene.simulation().map_err(fail)?;
+    let vtk_on = scene.output.vtk_interval > 0.0;
+    prepare(out, vtk_on, options.checkpoint_every > 0).map_err(fail)?;
+    let mut text = line(&history_header(scene));
+    text += &line(&history_row(&sim, scene, None));
+    let history = History::start(out.join("history.csv"), text, options.checkpoint_every > 0)
+        .map_err(fail)?;
+    let mut summary = empty_summary();
+    summary.warnings = sim.warnings().to_vec();
+    summary.initial_energy = sim.initial_energy();
+    let mut carried = Carried {
+        summary,
+        last_history: 0.0,
+        next_vtk: scene.output.vtk_interval,
+        turned: vec![0.0; scene.bodies.len()],
+        pvd: Vec::new(),
+        wall_before: 0.0,
     };
     if vtk_on {
-        write_frame(&sim, &mut pvd, &[]).map_err(fail)?;
+        write_frame(&sim, out, stem, &mut carried.pvd, &[]).map_err(fail)?;
     }
+    drive(
+        scene, stem, sim, out, history, carried, options, progress, recorder, start,
+    )
+}
 
+/// Continues a run from a checkpoint ([`checkpoint::read`](super::checkpoint::read)),
+/// writing into `out`: `history.csv` is rewritten with the checkpoint's rows, then every
+/// step appends to it exactly as the uninterrupted run would have; the `.pvd` collection
+/// keeps the checkpoint's frames whose files are in `out` (all of them when `out` is the
+/// original run's folder).
+pub fn resume<const D: usize>(
+    checkpoint: Checkpoint<D>,
+    out: &Path,
+    options: RunOptions,
+    progress: &mut dyn FnMut(Progress),
+    recorder: &mut dyn Recorder<D>,
+) -> std::result::Result<Summary, Box<RunFailure>>
+where
+    Dim<D>: SpatialDim<D>,
+{
+    let start = Instant::now();
+    let scene = checkpoint.scene();
+    let Checkpoint {
+        softway_version,
+        stem,
+        model,
+        state,
+        run,
+        ..
+    } = checkpoint;
+    if run.turned.len() != scene.bodies.len() {
+        return Err(fail(Error::Output {
+            file: out.to_path_buf(),
+            source: std::io::Error::other("the checkpoint's run record does not fit its model"),
+        }));
+    }
+    let sim = Simulation::from_parts(model, state).map_err(fail)?;
+    let vtk_on = scene.output.vtk_interval > 0.0;
+    prepare(out, vtk_on, options.checkpoint_every > 0).map_err(fail)?;
+    let history = History::start(
+        out.join("history.csv"),
+        run.history,
+        options.checkpoint_every > 0,
+    )
+    .map_err(fail)?;
     let mut summary = empty_summary();
-    summary.warnings = warnings;
+    summary.steps = sim.state().step;
+    summary.total_iterations = run.total_iterations;
+    summary.max_penetration = run.max_penetration;
+    summary.warnings = run.warnings;
     summary.initial_energy = sim.initial_energy();
+    if softway_version != env!("CARGO_PKG_VERSION") {
+        summary.warnings.push(format!(
+            "resumed from a checkpoint written by softway {softway_version} (this is {}): \
+             the results may differ in round-off from the uninterrupted run's",
+            env!("CARGO_PKG_VERSION")
+        ));
+    }
+    let pvd: Vec<(f64, usize, String)> = run
+        .pvd
+        .into_iter()
+        .filter(|(_, _, f)| out.join(f).is_file())
+        .collect();
+    if vtk_on {
+        let path = out.join(format!("{stem}.pvd"));
+        vtk::write_pvd_parts(&path, &pvd)
+            .map_err(|source| fail(Error::Output { file: path, source }))?;
+    }
+    let carried = Carried {
+        summary,
+        last_history: run.last_history,
+        next_vtk: run.next_vtk,
+        turned: run.turned,
+        pvd,
+        wall_before: run.wall_seconds,
+    };
+    drive(
+        &scene, &stem, sim, out, history, carried, options, progress, recorder, start,
+    )
+}
+
+/// Writes the VTK files of the current state and the `.pvd` collection with them.
+fn write_frame<const D: usize>(
+    sim: &Simulation<D>,
+    out: &Path,
+    stem: &str,
+    pvd: &mut Vec<(f64, usize, String)>,
+    contacts: &[(usize, f64, f64)],
+) -> Result<()>
+where
+    Dim<D>: SpatialDim<D>,
+{
+    for (part, f) in write_vtk(sim, out, contacts)?.into_iter().enumerate() {
+        pvd.push((sim.state().time, part, f));
+    }
+    let pvd_path = out.join(format!("{stem}.pvd"));
+    vtk::write_pvd_parts(&pvd_path, pvd).map_err(|source| Error::Output {
+        file: pvd_path.clone(),
+        source,
+    })
+}
+
+/// Writes `<out>/checkpoints/step_<N>.ckpt` of the current step; returns its path relative
+/// to `out`.
+#[allow(clippy::too_many_arguments)]
+fn write_checkpoint<const D: usize>(
+    scene: &Scene<D>,
+    stem: &str,
+    sim: &Simulation<D>,
+    out: &Path,
+    history: &History,
+    carried: &Carried,
+    every: usize,
+    start: Instant,
+) -> Result<String>
+where
+    Dim<D>: SpatialDim<D>,
+{
+    let run = RunRecord {
+        checkpoint_every: every,
+        total_iterations: carried.summary.total_iterations,
+        max_penetration: carried.summary.max_penetration,
+        wall_seconds: carried.wall_before + start.elapsed().as_secs_f64(),
+        warnings: carried.summary.warnings.clone(),
+        last_history: carried.last_history,
+        next_vtk: carried.next_vtk,
+        turned: carried.turned.clone(),
+        history: history.text.clone().unwrap_or_default(),
+        pvd: carried.pvd.clone(),
+    };
+    let ckpt = Checkpoint::of_scene(scene, stem, sim.model().clone(), sim.state().clone(), run);
+    let step = sim.state().step;
+    ckpt.write(&checkpoint::path_for(out, step))?;
+    Ok(format!("checkpoints/step_{step}.ckpt"))
+}
+
+/// The run loop, from a fresh start or a checkpoint.
+#[allow(clippy::too_many_arguments)]
+fn drive<const D: usize>(
+    scene: &Scene<D>,
+    stem: &str,
+    mut sim: Simulation<D>,
+    out: &Path,
+    mut history: History,
+    mut carried: Carried,
+    options: RunOptions,
+    progress: &mut dyn FnMut(Progress),
+    recorder: &mut dyn Recorder<D>,
+    start: Instant,
+) -> std::result::Result<Summary, Box<RunFailure>>
+where
+    Dim<D>: SpatialDim<D>,
+{
+    let vtk_on = scene.output.vtk_interval > 0.0;
+    let every = options.checkpoint_every;
     let h = scene.settings.time_step;
     let end = scene.end_time;
-    let mut last_history = 0.0;
-    let mut next_vtk = scene.output.vtk_interval;
     let mut error = None;
-    // The largest rotation of each small-strain body, checked at every history row.
-    let mut turned: Vec<f64> = vec![0.0; scene.bodies.len()];
+    let mut interrupted = false;
+    let mut checkpointed = None;
     while sim.state().time < end - 1e-9 * h {
+        if options.stop.is_some_and(|s| s.load(Ordering::SeqCst)) {
+            interrupted = true;
+            break;
+        }
         let t = sim.state().time;
         // The last step is shortened to end exactly at end_time.
         let step = if end - t < h * (1.0 + 1e-9) {
@@ -384,53 +612,67 @@ where
         } else {
             h
         };
-        match sim.advance(step, recorder) {
-            Ok(report) => {
-                summary.steps = report.step;
-                summary.total_iterations += report.iterations;
-                summary.max_penetration = summary.max_penetration.max(report.max_penetration);
-                let now = report.time;
-                let last = now >= end - 1e-9 * h;
-                let interval = scene.output.history_interval;
-                if interval == 0.0 || now - last_history >= interval * (1.0 - 1e-9) || last {
-                    last_history = now;
-                    for (body, angle) in sim.small_strain_rotations() {
-                        turned[body.0] = turned[body.0].max(angle);
-                    }
-                    if let Err(e) = history.row(
-                        history_row(&sim, scene, Some(&report))
-                            .iter()
-                            .map(String::as_str),
-                    ) {
-                        error = Some(e);
-                        break;
-                    }
-                }
-                if vtk_on && (now >= next_vtk * (1.0 - 1e-9) || last) {
-                    while next_vtk <= now * (1.0 + 1e-9) {
-                        next_vtk += scene.output.vtk_interval;
-                    }
-                    if let Err(e) = write_frame(&sim, &mut pvd, &report.contacts) {
-                        error = Some(e);
-                        break;
-                    }
-                }
-                progress(Progress {
-                    time: now,
-                    end_time: end,
-                    steps: report.step,
-                    iterations: report.iterations,
-                });
-            }
+        let report = match sim.advance(step, recorder) {
+            Ok(report) => report,
             Err(e) => {
                 error = Some(e);
                 break;
             }
+        };
+        let summary = &mut carried.summary;
+        summary.steps = report.step;
+        summary.total_iterations += report.iterations;
+        summary.max_penetration = summary.max_penetration.max(report.max_penetration);
+        let now = report.time;
+        let last = now >= end - 1e-9 * h;
+        let interval = scene.output.history_interval;
+        if interval == 0.0 || now - carried.last_history >= interval * (1.0 - 1e-9) || last {
+            carried.last_history = now;
+            for (body, angle) in sim.small_strain_rotations() {
+                carried.turned[body.0] = carried.turned[body.0].max(angle);
+            }
+            if let Err(e) = history.row(&history_row(&sim, scene, Some(&report))) {
+                error = Some(e);
+                break;
+            }
+        }
+        if vtk_on && (now >= carried.next_vtk * (1.0 - 1e-9) || last) {
+            while carried.next_vtk <= now * (1.0 + 1e-9) {
+                carried.next_vtk += scene.output.vtk_interval;
+            }
+            if let Err(e) = write_frame(&sim, out, stem, &mut carried.pvd, &report.contacts) {
+                error = Some(e);
+                break;
+            }
+        }
+        if every > 0 && report.step % every == 0 {
+            match write_checkpoint(scene, stem, &sim, out, &history, &carried, every, start) {
+                Ok(file) => checkpointed = Some((report.step, file)),
+                Err(e) => {
+                    error = Some(e);
+                    break;
+                }
+            }
+        }
+        progress(Progress {
+            time: now,
+            end_time: end,
+            steps: report.step,
+            iterations: report.iterations,
+        });
+    }
+    let mut summary = carried.summary.clone();
+    if interrupted && every > 0 && checkpointed.as_ref().map(|c| c.0) != Some(sim.state().step) {
+        // The step the run stopped at, so that nothing done is lost.
+        match write_checkpoint(scene, stem, &sim, out, &history, &carried, every, start) {
+            Ok(file) => checkpointed = Some((sim.state().step, file)),
+            Err(e) => error = Some(e),
         }
     }
+    summary.last_checkpoint = checkpointed.map(|c| c.1);
     let e = sim.energies();
     summary.final_time = sim.state().time;
-    summary.wall_seconds = start.elapsed().as_secs_f64();
+    summary.wall_seconds = carried.wall_before + start.elapsed().as_secs_f64();
     summary.final_energy = e.total();
     summary.external_work = e.external_work;
     summary.dissipated_energy = e.dissipated;
@@ -438,7 +680,7 @@ where
     summary.energy_drift =
         ((e.total() - summary.initial_energy - e.external_work + e.dissipated).abs() / reference)
             .min(f64::MAX);
-    for (b, &angle) in turned.iter().enumerate() {
+    for (b, &angle) in carried.turned.iter().enumerate() {
         if angle > 0.0 {
             summary.warnings.push(format!(
                 "body `{}` turned {:.0} degrees with a small-strain law (linear_elastic): a \
@@ -461,6 +703,8 @@ where
     if let Some(err) = &error {
         summary.status = "failed".into();
         summary.error = Some(err.to_string());
+    } else if interrupted {
+        summary.status = "interrupted".into();
     }
     let written = write_json(&out.join("summary.json"), &summary);
     match (error, written) {
@@ -487,5 +731,6 @@ fn empty_summary() -> Summary {
         final_energy: 0.0,
         external_work: 0.0,
         dissipated_energy: 0.0,
+        last_checkpoint: None,
     }
 }

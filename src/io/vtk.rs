@@ -13,10 +13,10 @@
 //! of face 0-1-2; hexahedra with the bottom face 0-3 counter-clockwise seen from the top
 //! face 4-7, node 4 above node 0). Connectivity is written unchanged.
 
-use std::ffi::OsString;
-use std::fs::File;
-use std::io::{self, BufWriter, Write};
-use std::path::{Path, PathBuf};
+use std::io::{self, Write};
+use std::path::Path;
+
+use super::atomic::write_atomic;
 
 /// Linear cell kinds that can be written.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -272,35 +272,6 @@ fn write_xml(w: &mut impl Write, piece: &VtkPiece<'_>, arrays: &Arrays) -> io::R
     writeln!(w, "</VTKFile>")
 }
 
-/// `<path>.tmp`, next to `path` so that the rename stays on one file system.
-fn tmp_path(path: &Path) -> PathBuf {
-    let mut s: OsString = path.as_os_str().to_owned();
-    s.push(".tmp");
-    PathBuf::from(s)
-}
-
-/// Write through `f` into `<path>.tmp`, then rename it to `path`.
-fn write_atomic(
-    path: &Path,
-    f: impl FnOnce(&mut BufWriter<File>) -> io::Result<()>,
-) -> io::Result<()> {
-    let tmp = tmp_path(path);
-    let result = (|| {
-        let mut w = BufWriter::new(File::create(&tmp)?);
-        f(&mut w)?;
-        w.flush()?;
-        // No fsync: the rename already keeps readers from seeing partial files, and
-        // syncing every frame of a simulation would cost more than it protects.
-        drop(w);
-        std::fs::rename(&tmp, path)
-    })();
-    if result.is_err() {
-        // Best effort: do not leave a stale temporary behind.
-        let _ = std::fs::remove_file(&tmp);
-    }
-    result
-}
-
 /// Write `piece` as a VTK XML unstructured grid (`.vtu`) at `path`.
 ///
 /// The piece is checked first (node counts per cell kind, point indices in range, field
@@ -308,7 +279,7 @@ fn write_atomic(
 /// The file appears atomically (written to `<path>.tmp`, then renamed).
 pub fn write_vtu(path: &Path, piece: &VtkPiece) -> io::Result<()> {
     let arrays = to_arrays(piece)?;
-    write_atomic(path, |w| write_xml(w, piece, &arrays))
+    write_atomic(path, false, |w| write_xml(w, piece, &arrays))
 }
 
 /// Escape text for an XML attribute value.
@@ -343,7 +314,7 @@ pub fn write_pvd_parts(path: &Path, entries: &[(f64, usize, String)]) -> io::Res
     if let Some((t, _, f)) = entries.iter().find(|(t, _, _)| !t.is_finite()) {
         return Err(invalid(format!("time {t} of {f:?} is not finite")));
     }
-    write_atomic(path, |w| {
+    write_atomic(path, false, |w| {
         writeln!(w, "<?xml version=\"1.0\"?>")?;
         writeln!(
             w,
@@ -386,14 +357,6 @@ mod tests {
             assert_eq!(base64(raw.as_bytes()), encoded);
         }
         assert_eq!(base64(&[0xff, 0xfe, 0x00]), "//4A");
-    }
-
-    #[test]
-    fn tmp_is_sibling() {
-        assert_eq!(
-            tmp_path(Path::new("out/a.vtu")),
-            PathBuf::from("out/a.vtu.tmp")
-        );
     }
 
     #[test]

@@ -5,8 +5,10 @@
 //! temporary folders. Every case is a tiny mesh and a handful of steps.
 //!
 //! `support.rs`: running the binary and checking messages; `invalid_input.rs`: bad scenes
-//! (exit status 2); `valid_runs.rs`: runs, their outputs, `--set`, instability (exit status 3).
+//! (exit status 2); `valid_runs.rs`: runs, their outputs, `--set`, instability (exit status 3);
+//! `checkpoints.rs`: checkpoints, `resume`, interrupts and atomic outputs.
 
+mod checkpoints;
 mod invalid_input;
 mod support;
 mod valid_runs;
