@@ -181,6 +181,17 @@ where
     );
     assert!(worst < 0.01, "{worst}");
     assert!(volume.abs() < 0.005, "{volume}");
+    // The homogeneous flow's equivalent strain, ln(H0 / H), in every cell (the VTK output's
+    // `equivalent_strain`).
+    let height = HEIGHT - SPEED * sim.state().time;
+    let expected = (HEIGHT / height).ln();
+    let strains = sim.cell_equivalent_strains();
+    let spread = strains
+        .iter()
+        .map(|e| (e / expected - 1.0).abs())
+        .fold(0.0f64, f64::max);
+    eprintln!("{D}D equivalent strain: {expected:.5} expected, worst cell off by {spread:.2e}");
+    assert!(spread < 0.01, "{spread}");
 }
 
 /// The same with Coulomb 0.3 on the die: the top face is held, the free side barrels (its

@@ -278,3 +278,25 @@ fn an_inverted_cell_makes_the_energy_nan() {
         .collect();
     assert!(energy(&mirrored).is_nan());
 }
+
+/// The equivalent logarithmic strain of an incompressible uniaxial stretch is ln of the
+/// stretch, whatever the axis; a rigid rotation strains nothing.
+#[test]
+fn equivalent_strain_of_a_stretch_and_a_rotation() {
+    use nalgebra::{Matrix3, Rotation3, Vector3};
+    for stretch in [1.1_f64, 2.0, 0.5] {
+        let f = Matrix3::from_diagonal(&Vector3::new(
+            1.0 / stretch.sqrt(),
+            stretch,
+            1.0 / stretch.sqrt(),
+        ));
+        let turned = Rotation3::from_euler_angles(0.3, -0.7, 1.1).into_inner() * f;
+        for g in [f, turned] {
+            let e = super::equivalent_log_strain(&g);
+            assert!((e - stretch.ln().abs()).abs() < 1e-12, "{e} vs {}", stretch.ln());
+        }
+    }
+    let rotation = Rotation3::from_euler_angles(0.2, 0.4, -0.9).into_inner();
+    assert!(super::equivalent_log_strain(&rotation) < 1e-12);
+    assert!(super::equivalent_log_strain(&-Matrix3::identity()).is_nan());
+}

@@ -232,6 +232,7 @@ where
     Dim<D>: SpatialDim<D>,
 {
     let stresses = sim.cell_stresses();
+    let strains = sim.cell_equivalent_strains();
     let mut cell_offset = 0;
     let mut files = Vec::new();
     for (b, body) in sim.bodies().iter().enumerate() {
@@ -264,6 +265,7 @@ where
             .collect();
         let n_cells = cells.len();
         let body_stress = &stresses[cell_offset..cell_offset + n_cells];
+        let body_strain = &strains[cell_offset..cell_offset + n_cells];
         cell_offset += n_cells;
         // Stress as a symmetric 3x3 tensor (ParaView's 9-component convention) and von Mises.
         let mut tensor = Vec::with_capacity(n_cells * 9);
@@ -306,6 +308,11 @@ where
                     name: "von_mises",
                     components: 1,
                     values: &mises,
+                },
+                VtkField {
+                    name: "equivalent_strain",
+                    components: 1,
+                    values: body_strain,
                 },
             ],
         };
