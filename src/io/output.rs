@@ -16,7 +16,7 @@ use crate::dim::{Dim, SpatialDim};
 use crate::element::ElementKind;
 use crate::error::{Error, Result};
 use crate::recording::Recorder;
-use crate::simulation::{BodyId, Simulation, StepReport};
+use crate::simulation::{BodyId, RunMonitor, Simulation, StepReport};
 
 /// `summary.json`.
 #[derive(Debug, Clone, Serialize, PartialEq)]
@@ -166,7 +166,8 @@ where
         number(e.contact),
         number(e.external_work),
         number(e.dissipated),
-        number(report.map_or(0.0, |r| r.max_penetration)),
+        // At t = 0 the overlaps the scene starts with.
+        number(report.map_or_else(|| sim.current_penetration(), |r| r.max_penetration)),
         report.map_or(0, |r| r.active_contacts).to_string(),
     ];
     for k in 0..scene.obstacles.len() {
@@ -368,7 +369,12 @@ where
 
     let mut summary = empty_summary();
     summary.warnings = warnings;
+    for overlap in sim.overlaps() {
+        summary.warnings.push(overlap.to_string());
+    }
     summary.initial_energy = sim.initial_energy();
+    summary.max_penetration = sim.current_penetration();
+    let mut monitor = RunMonitor::new(&sim);
     let h = scene.settings.time_step;
     let end = scene.end_time;
     let mut last_history = 0.0;
@@ -376,7 +382,13 @@ where
     let mut error = None;
     // The largest rotation of each small-strain body, checked at every history row.
     let mut turned: Vec<f64> = vec![0.0; scene.bodies.len()];
-    while sim.state().time < end - 1e-9 * h {
+    // Bounded by construction: the scene's step count (at most MAX_STEPS, checked at load)
+    // and one more, whatever the round-off of the times.
+    let budget = super::scene::step_count(end, h).min(super::scene::MAX_STEPS) as usize + 1;
+    for _ in 0..budget {
+        if sim.state().time >= end - 1e-9 * h {
+            break;
+        }
         let t = sim.state().time;
         // The last step is shortened to end exactly at end_time.
         let step = if end - t < h * (1.0 + 1e-9) {
@@ -386,6 +398,25 @@ where
         };
         match sim.advance(step, recorder) {
             Ok(report) => {
+                match monitor.step(&sim, &report) {
+                    Ok(Some(news)) => recorder.log(&sim, &format!("warning: {news}")),
+                    Ok(None) => {}
+                    Err(e) => {
+                        // The step is committed: its row shows the energy that stopped the run.
+                        summary.steps = report.step;
+                        summary.total_iterations += report.iterations;
+                        summary.max_penetration =
+                            summary.max_penetration.max(report.max_penetration);
+                        let row = history_row(&sim, scene, Some(&report));
+                        error = Some(
+                            history
+                                .row(row.iter().map(String::as_str))
+                                .err()
+                                .unwrap_or(e),
+                        );
+                        break;
+                    }
+                }
                 summary.steps = report.step;
                 summary.total_iterations += report.iterations;
                 summary.max_penetration = summary.max_penetration.max(report.max_penetration);
@@ -407,9 +438,7 @@ where
                     }
                 }
                 if vtk_on && (now >= next_vtk * (1.0 - 1e-9) || last) {
-                    while next_vtk <= now * (1.0 + 1e-9) {
-                        next_vtk += scene.output.vtk_interval;
-                    }
+                    next_vtk = next_after(next_vtk, now, scene.output.vtk_interval);
                     if let Err(e) = write_frame(&sim, &mut pvd, &report.contacts) {
                         error = Some(e);
                         break;
@@ -449,6 +478,7 @@ where
             ));
         }
     }
+    summary.warnings.extend(monitor.warnings());
     // Booked energy growth closes the account, so energy_drift cannot show it: say it here.
     if e.dissipated < -1e-9 * reference {
         summary.warnings.push(format!(
@@ -470,6 +500,18 @@ where
         })),
         (None, Ok(())) => Ok(summary),
     }
+}
+
+/// The first multiple of `interval` after `now` (from `next` on): a few additions as the runs
+/// always did, then a product, so that no interval, however small, keeps it counting.
+fn next_after(mut next: f64, now: f64, interval: f64) -> f64 {
+    for _ in 0..64 {
+        if next > now * (1.0 + 1e-9) {
+            return next;
+        }
+        next += interval;
+    }
+    ((now * (1.0 + 1e-9) / interval).floor() + 1.0) * interval
 }
 
 fn empty_summary() -> Summary {

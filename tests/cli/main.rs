@@ -5,8 +5,10 @@
 //! temporary folders. Every case is a tiny mesh and a handful of steps.
 //!
 //! `support.rs`: running the binary and checking messages; `invalid_input.rs`: bad scenes
-//! (exit status 2); `valid_runs.rs`: runs, their outputs, `--set`, instability (exit status 3).
+//! (exit status 2); `valid_runs.rs`: runs, their outputs, `--set`, instability (exit status 3);
+//! `reliability.rs`: issue 14 (runs that end, limits, overlaps, messages, monitors).
 
 mod invalid_input;
+mod reliability;
 mod support;
 mod valid_runs;

@@ -5,6 +5,7 @@ use std::collections::BTreeMap;
 
 use nalgebra::SVector;
 
+use super::plain;
 use super::schema::MeshSpec;
 use super::LoadedScene;
 use crate::dim::{Dim, SpatialDim};
@@ -29,6 +30,25 @@ impl LoadedScene {
                 key,
                 format!("{c:?}"),
                 format!("at most {MAX_CELLS} cells in all"),
+            ));
+        }
+        // Before the generator allocates: the grid's nodes times N unknowns each, and the
+        // least memory their matrices take (see `limits`).
+        let nodes: f64 = c.iter().map(|&n| n as f64 + 1.0).product();
+        let unknowns = nodes * N as f64;
+        let needed = super::memory_lower_bound(unknowns, N);
+        let limit = super::memory_limit();
+        if needed > limit {
+            return Err(self.error(
+                key,
+                format!(
+                    "{c:?}: {nodes:.1e} nodes, {unknowns:.1e} unknowns, at least {} of matrices",
+                    super::limits::bytes(needed)
+                ),
+                format!(
+                    "a mesh whose matrices fit in this machine's {} of memory (fewer cells)",
+                    super::limits::bytes(limit)
+                ),
             ));
         }
         let mut out = [0usize; N];
@@ -227,6 +247,16 @@ impl LoadedScene {
                                     "a radius > inner_radius [m]",
                                 )
                             })?;
+                            // Each radius blamed by its own key (the generator's message
+                            // would name outer_radius for a NaN inner one).
+                            let ri = self.positive(&format!("{key}.inner_radius"), ri, "m")?;
+                            if !(ro > ri && ro.is_finite()) {
+                                return Err(self.error(
+                                    &format!("{key}.outer_radius"),
+                                    ro,
+                                    format!("a finite radius > inner_radius = {} [m]", plain(ri)),
+                                ));
+                            }
                             let cells = if D == 2 {
                                 self.cells::<2>(&format!("{key}.cells"), &spec.cells)?
                             } else {
