@@ -338,3 +338,31 @@ impl RunMonitor {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn energies(kinetic: f64, external_work: f64, dissipated: f64) -> Energies {
+        Energies {
+            kinetic,
+            internal: 0.0,
+            contact: 0.0,
+            external_work,
+            dissipated,
+        }
+    }
+
+    #[test]
+    fn energy_created_against_the_input() {
+        // A closed account: E + D = E(0) + W.
+        assert_eq!(energy_created(10.0, &energies(8.0, 0.0, 2.0)), 0.0);
+        assert_eq!(energy_created(10.0, &energies(15.0, 5.0, 0.0)), 0.0);
+        // 10 % more than went in.
+        assert!((energy_created(10.0, &energies(11.0, 0.0, 0.0)) - 0.1).abs() < 1e-12);
+        // Energy booked as negative dissipation is not subtracted: it was created.
+        assert!((energy_created(10.0, &energies(30.0, 0.0, -20.0)) - 2.0).abs() < 1e-12);
+        // Nothing to compare with.
+        assert_eq!(energy_created(0.0, &energies(1e-30, 0.0, 0.0)), 0.0);
+    }
+}

@@ -465,6 +465,36 @@ fn check_summary_in_words() {
     );
 }
 
+/// A body of almost no mass: the factorisation fails, in words (it printed faer's
+/// `NonPositivePivot { index: 1 }`).
+#[test]
+fn factorisation_failure_names_no_solver_type() {
+    let dir = tempdir();
+    let (_scenes, file) = scene(BLOCK);
+    let out = dir.path().join("out");
+    let o = run_in(
+        dir.path(),
+        &[
+            "run",
+            file.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+            "--set",
+            "bodies.0.material.density=1e-300",
+        ],
+    );
+    assert_eq!(o.status.code(), Some(3), "{}", stderr(&o));
+    let err = error_line(&o);
+    assert!(
+        err.starts_with("error: factorisation failed at step 1: pivot ")
+            && err.ends_with(
+                " of the factorisation is not positive: the iteration matrix is not positive \
+                 definite (a body with no mass and no support, or a non-physical material)"
+            ),
+        "{err}"
+    );
+}
+
 // ---------------------------------------------------------------------------------------------
 // Monitors.
 
@@ -560,5 +590,35 @@ fn step_cuts_are_a_warning() {
                 first at step 100 (t = 1.000000e-1 s); a smaller time_step avoids the cuts"),
         "{:?}",
         warnings(&out)
+    );
+}
+
+/// A block resting on the floor with a penalty a million times too soft sinks into it.
+#[test]
+fn deep_penetration_is_a_warning() {
+    let dir = tempdir();
+    let (_scenes, file) = scene(&BLOCK.replace("min = [0.0, 0.1]", "min = [0.0, 0.0]"));
+    let out = dir.path().join("out");
+    let o = run_in(
+        dir.path(),
+        &[
+            "run",
+            file.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+            "--set",
+            "contact.penalty=1e3",
+            "--set",
+            "simulation.end_time=0.3",
+        ],
+    );
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    assert_eq!(
+        warnings(&out),
+        [
+            "penetration beyond 2.667e-2 m (a tenth of the mean boundary facet) from step 75 (t = \
+          7.500000e-2 s), 6.676e-2 m at most; a larger penalty or a smaller time_step keeps the \
+          bodies apart"
+        ]
     );
 }
