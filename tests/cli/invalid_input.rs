@@ -322,7 +322,7 @@ fn bad_meshes() {
         Expect {
             key: "bodies.0.mesh",
             marker: mesh_line,
-            found: "cell 1 inverted",
+            found: "Gmsh element 3 (cell 1 of the body) inverted",
             expected: "positive Jacobian",
         },
     );

@@ -465,6 +465,24 @@ fn check_summary_in_words() {
     );
 }
 
+/// The inverted cell of a Gmsh mesh is named by its element tag in the file (element 3), not
+/// only by the body's internal cell index (1).
+#[test]
+fn inverted_cell_names_the_gmsh_element_tag() {
+    let dir = tempdir();
+    let file = bad("mesh_inverted");
+    let err = assert_invalid(dir.path(), &["check", file.to_str().unwrap()]);
+    assert_eq!(
+        err.trim_end(),
+        format!(
+            "error: {}: line 9: `bodies.0.mesh`: found Gmsh element 3 (cell 1 of the body) \
+             inverted (Jacobian determinant -1.000e-1), expected cells with a positive Jacobian \
+             everywhere (check node ordering and geometry)",
+            file.display()
+        )
+    );
+}
+
 /// A body of almost no mass: the factorisation fails, in words (it printed faer's
 /// `NonPositivePivot { index: 1 }`).
 #[test]

@@ -140,14 +140,16 @@ impl LoadedScene {
                     ));
                 }
                 let path = self.base_dir().join(file);
-                let mesh = crate::io::gmsh::from_gmsh_file::<D>(&path).map_err(|e| match e {
-                    Error::MeshFile { file, message } => self.error(
+                let unreadable = |message: String| {
+                    self.error(
                         &format!("{key}.file"),
-                        format!("{} ({message})", file.display()),
+                        format!("{} ({message})", path.display()),
                         "a readable Gmsh MSH 2.2 or 4.1 file",
-                    ),
-                    other => other,
-                })?;
+                    )
+                };
+                let gmsh =
+                    crate::io::gmsh::read_gmsh(&path).map_err(|e| unreadable(e.to_string()))?;
+                let mesh = crate::io::gmsh::from_gmsh::<D>(&gmsh).map_err(unreadable)?;
                 let groups = mesh.node_sets.clone().into_iter().collect();
                 mesh.validate_topology(body).map_err(|e| match e {
                     Error::Mesh { message, .. } => self.error(
@@ -157,6 +159,26 @@ impl LoadedScene {
                     ),
                     other => other,
                 })?;
+                // Cells named by their Gmsh element tag, the number a user sees in Gmsh.
+                if let Err(Error::InvertedElement {
+                    cell,
+                    kind,
+                    jacobian,
+                    ..
+                }) = mesh.check_quality(body)
+                {
+                    let tag = crate::io::gmsh::cell_tags::<D>(&gmsh).get(cell).copied();
+                    return Err(self.error(
+                        key,
+                        format!(
+                            "Gmsh element {} (cell {cell} of the body) {kind} (Jacobian \
+                             determinant {jacobian:.3e})",
+                            tag.map_or("?".to_string(), |t| t.to_string())
+                        ),
+                        "cells with a positive Jacobian everywhere (check node ordering and \
+                         geometry)",
+                    ));
+                }
                 Ok((mesh, groups))
             }
             (Some(g), None) => {
