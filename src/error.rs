@@ -119,6 +119,29 @@ pub enum Error {
         /// The energy growth or the non-finite quantity.
         detail: String,
     },
+    /// The run created energy: kinetic + internal + contact energy plus the dissipated energy
+    /// exceeded the input (E(0) + |external work|) by more than
+    /// [`ENERGY_FAILURE`](crate::simulation::ENERGY_FAILURE) of it.
+    #[error(
+        "energy created at step {step} (t = {time:.6e} s): the energy the time scheme \
+         conserves (kinetic + internal + contact) plus the dissipated energy is {energy:.3e} J, \
+         {percent:.1}% above the input E(0) + |external work| = {input:.3e} J (the run stops \
+         above 1000%); {advice}"
+    )]
+    EnergyCreated {
+        /// Step number (1-based).
+        step: usize,
+        /// Time at the end of the step [s].
+        time: f64,
+        /// The scheme's conserved energy Q(t) + max(dissipated, 0) [J].
+        energy: f64,
+        /// E(0) + |external work| [J].
+        input: f64,
+        /// The excess, in percent of the input.
+        percent: f64,
+        /// What to change.
+        advice: String,
+    },
     /// A cell of an updated-Lagrangian body turned inside out in every Newton iterate tried
     /// (after halving the increment), at the step's finest cut.
     #[error(

@@ -293,7 +293,11 @@ fn equivalent_strain_of_a_stretch_and_a_rotation() {
         let turned = Rotation3::from_euler_angles(0.3, -0.7, 1.1).into_inner() * f;
         for g in [f, turned] {
             let e = super::equivalent_log_strain(&g);
-            assert!((e - stretch.ln().abs()).abs() < 1e-12, "{e} vs {}", stretch.ln());
+            assert!(
+                (e - stretch.ln().abs()).abs() < 1e-12,
+                "{e} vs {}",
+                stretch.ln()
+            );
         }
     }
     let rotation = Rotation3::from_euler_angles(0.2, 0.4, -0.9).into_inner();

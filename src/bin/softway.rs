@@ -9,9 +9,12 @@ use std::sync::Arc;
 
 use clap::{Parser, Subcommand};
 use indicatif::{ProgressBar, ProgressStyle};
+use softway::contact::{ContactMethod, FrictionLaw};
+use softway::dim::Kinematics;
 use softway::dim::{Dim, SpatialDim};
 use softway::io::checkpoint::{self, AnyCheckpoint, Checkpoint};
 use softway::io::output::{self, Progress, RunOptions};
+use softway::io::scene::plain;
 use softway::io::scene::{self, LoadedScene};
 use softway::Error;
 
@@ -116,9 +119,13 @@ fn main() -> ExitCode {
                 .and_then(|s| s.to_str())
                 .unwrap_or("scene")
                 .to_string();
+            let out = out.unwrap_or_else(|| Path::new("out").join(&stem));
+            if let Some(code) = not_a_folder(&out) {
+                return code;
+            }
             let job = Job {
                 input: scene.clone(),
-                out: out.unwrap_or_else(|| Path::new("out").join(&stem)),
+                out,
                 quiet,
                 rerun,
                 checkpoint_every: checkpoint_every.unwrap_or(0),
@@ -164,6 +171,9 @@ fn main() -> ExitCode {
                 Err(e) => return invalid(&e),
             };
             let out = out.unwrap_or_else(|| checkpoint::default_out(&file));
+            if let Some(code) = not_a_folder(&out) {
+                return code;
+            }
             let mut job = Job {
                 input: file,
                 out,
@@ -224,27 +234,41 @@ where
         Err(e) => return invalid_in(&loaded.path, &e),
     };
     let s = &scene.settings;
+    let kinematics = match s.kinematics {
+        Kinematics::PlaneStrain => "plane_strain",
+        Kinematics::PlaneStress => "plane_stress",
+        Kinematics::Axisymmetric => "axisymmetric",
+        Kinematics::Solid => "solid",
+    };
+    // Plane kinematics: per metre of thickness; axisymmetric: the whole revolution.
+    let per_thickness = matches!(
+        s.kinematics,
+        Kinematics::PlaneStrain | Kinematics::PlaneStress
+    );
     println!("{}: valid", loaded.path.display());
     println!(
-        "  {D}D {:?}, h = {} s, end_time = {} s ({} steps), alpha = {}, beta = {}",
-        s.kinematics,
-        s.time_step,
-        scene.end_time,
-        // As `run` counts them: the last step may be shortened, and a quotient that is an
-        // integer up to round-off (0.07 / 0.01 = 7.000000000000001) is not one more step.
-        (scene.end_time / s.time_step * (1.0 - 1e-9))
-            .ceil()
-            .max(0.0),
-        s.scheme.alpha,
-        s.scheme.beta
+        "  {D}D {kinematics}, h = {} s, end_time = {} s ({} steps), alpha = {}, beta = {}",
+        plain(s.time_step),
+        plain(scene.end_time),
+        // As `run` counts them (at most MAX_STEPS: checked at load).
+        plain(scene::step_count(scene.end_time, s.time_step)),
+        plain(s.scheme.alpha),
+        plain(s.scheme.beta)
     );
+    let mut unknowns = 0.0;
     for (b, body) in scene.bodies.iter().enumerate() {
+        unknowns += (body.mesh.node_count() * D) as f64;
         println!(
-            "  body `{}`: {} nodes, {} cells, mass {:.6e} kg, {} constraint(s)",
+            "  body `{}`: {} nodes, {} cells, mass {:.6e} {}, {} constraint(s)",
             body.name,
             body.mesh.node_count(),
             body.mesh.cell_count(),
             sim.body_mass(softway::simulation::BodyId(b)),
+            if per_thickness {
+                "kg/m (per metre of thickness)"
+            } else {
+                "kg"
+            },
             body.constraints.len()
         );
         if !body.damping.is_none() {
@@ -254,16 +278,33 @@ where
             );
         }
     }
+    println!(
+        "  estimate: {unknowns:.0} unknowns, at least {:.1e} bytes of matrices (this machine: \
+         {:.1e} bytes)",
+        scene::memory_lower_bound(unknowns, D),
+        scene::memory_limit()
+    );
     for o in &scene.obstacles {
         println!("  obstacle `{}`", o.name);
     }
     if sim.detector().is_some() {
+        let method = scene.contact.method;
+        let penalty = if matches!(
+            method,
+            ContactMethod::SoftWay | ContactMethod::AugmentedLagrangian
+        ) {
+            format!(", penalty {:e} Pa/m", scene.contact.penalty)
+        } else {
+            String::new()
+        };
         println!(
-            "  contact: {}, penalty {} Pa/m, friction {:?}",
-            scene.contact.method.name(),
-            scene.contact.penalty,
-            scene.contact.friction
+            "  contact: {}{penalty}, friction {}",
+            method.name(),
+            friction_text(&scene.contact.friction)
         );
+    }
+    for overlap in sim.overlaps() {
+        println!("  warning: {overlap}");
     }
     for p in &scene.probes {
         println!(
@@ -275,6 +316,48 @@ where
         println!("  warning: {w}");
     }
     ExitCode::SUCCESS
+}
+
+/// A friction law as the scene file names it, with its parameters.
+fn friction_text(law: &FrictionLaw) -> String {
+    match law {
+        FrictionLaw::Frictionless => "frictionless".into(),
+        FrictionLaw::Coulomb {
+            coefficient,
+            regularization,
+        } => format!(
+            "coulomb (coefficient {}, regularization {:e} m/s)",
+            plain(*coefficient),
+            regularization
+        ),
+        FrictionLaw::Tresca {
+            limit,
+            regularization,
+        } => format!(
+            "tresca (limit {:e} Pa, regularization {:e} m/s)",
+            limit, regularization
+        ),
+        FrictionLaw::Viscoplastic {
+            coefficient,
+            exponent,
+            regularization,
+        } => format!(
+            "viscoplastic (coefficient {}, exponent {}, regularization {:e} m/s)",
+            plain(*coefficient),
+            plain(*exponent),
+            regularization
+        ),
+    }
+}
+
+/// Up front: a file where the output folder should be is invalid input, not a failed run.
+fn not_a_folder(out: &Path) -> Option<ExitCode> {
+    (out.exists() && !out.is_dir()).then(|| {
+        invalid(&Error::SceneSyntax {
+            file: out.to_path_buf(),
+            message: "--out names a file; expected a folder (created if missing)".into(),
+        })
+    })
 }
 
 /// What `run` and `resume` share: where the outputs go and how.
@@ -475,6 +558,7 @@ where
             let code = match failure.error {
                 Error::NotConverged { .. }
                 | Error::Unstable { .. }
+                | Error::EnergyCreated { .. }
                 | Error::InvertedCell { .. }
                 | Error::Factorization { .. }
                 | Error::Output { .. } => FAILED,

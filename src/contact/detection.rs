@@ -872,12 +872,15 @@ where
             let found =
                 |c: Choice<D>| pair(c.gap, o.turn(&c.normal), o.to_world(&c.point), c.feature);
             // Grow a search box until it holds a facet at most its half-width away: then it
-            // holds every facet as close as the closest one.
+            // holds every facet as close as the closest one. Bounded by construction: at most
+            // MAX_GROWTHS boxes (4^64 ~ 3e38 times the first), then every facet is tried, so
+            // that no number (huge, infinite or NaN coordinates) can keep it searching.
+            const MAX_GROWTHS: usize = 64;
             let diag = (of.bounds.max - of.bounds.min).norm();
             let mut r = (1e-3 * diag).max(f64::MIN_POSITIVE);
             let reach = 4.0 * (diag + of.bounds.distance(&Aabb { min: pl, max: pl }));
             let mut hits = Vec::new();
-            loop {
+            for _ in 0..MAX_GROWTHS {
                 hits.clear();
                 of.tree
                     .query(&Aabb { min: pl, max: pl }.loosened(r), &mut hits);
@@ -900,20 +903,22 @@ where
                         }
                     }
                 }
-                if r > reach {
-                    // Only degenerate facets within reach.
-                    let c = choose(
-                        &pl,
-                        0..of.facets.len(),
-                        |f| of.verts(f),
-                        |_| true,
-                        previous,
-                        hysteresis,
-                    )?;
-                    return Some((found(c), c.facet));
+                // Past reach only degenerate facets are left; a radius or reach that is not a
+                // finite number cannot grow into an answer.
+                if !(r <= reach && r.is_finite()) {
+                    break;
                 }
                 r *= 4.0;
             }
+            let c = choose(
+                &pl,
+                0..of.facets.len(),
+                |f| of.verts(f),
+                |_| true,
+                previous,
+                hysteresis,
+            )?;
+            Some((found(c), c.facet))
         }
     }
 }

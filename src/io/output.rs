@@ -19,7 +19,7 @@ use crate::dim::{Dim, SpatialDim};
 use crate::element::ElementKind;
 use crate::error::{Error, Result};
 use crate::recording::Recorder;
-use crate::simulation::{BodyId, Simulation, StepReport};
+use crate::simulation::{BodyId, RunMonitor, Simulation, StepReport};
 
 /// `summary.json`.
 #[derive(Debug, Clone, Serialize, PartialEq)]
@@ -186,7 +186,8 @@ where
         number(e.contact),
         number(e.external_work),
         number(e.dissipated),
-        number(report.map_or(0.0, |r| r.max_penetration)),
+        // At t = 0 the overlaps the scene starts with.
+        number(report.map_or_else(|| sim.current_penetration(), |r| r.max_penetration)),
         report.map_or(0, |r| r.active_contacts).to_string(),
     ];
     for k in 0..scene.obstacles.len() {
@@ -435,7 +436,11 @@ where
         .map_err(fail)?;
     let mut summary = empty_summary();
     summary.warnings = sim.warnings().to_vec();
+    for overlap in sim.overlaps() {
+        summary.warnings.push(overlap.to_string());
+    }
     summary.initial_energy = sim.initial_energy();
+    summary.max_penetration = sim.current_penetration();
     let mut carried = Carried {
         summary,
         last_history: 0.0,
@@ -607,7 +612,15 @@ where
     let mut error = None;
     let mut interrupted = false;
     let mut checkpointed = None;
-    while sim.state().time < end - 1e-9 * h {
+    // A resumed run's monitor starts at the checkpoint (its warnings count from there).
+    let mut monitor = RunMonitor::new(&sim);
+    // Bounded by construction: the scene's step count (at most MAX_STEPS, checked at load)
+    // and one more, whatever the round-off of the times.
+    let budget = super::scene::step_count(end, h).min(super::scene::MAX_STEPS) as usize + 1;
+    for _ in 0..budget {
+        if sim.state().time >= end - 1e-9 * h {
+            break;
+        }
         if options.stop.is_some_and(|s| s.load(Ordering::SeqCst)) {
             interrupted = true;
             break;
@@ -627,6 +640,19 @@ where
             }
         };
         let summary = &mut carried.summary;
+        match monitor.step(&sim, &report) {
+            Ok(Some(news)) => recorder.log(&sim, &format!("warning: {news}")),
+            Ok(None) => {}
+            Err(e) => {
+                // The step is committed: its row shows the energy that stopped the run.
+                summary.steps = report.step;
+                summary.total_iterations += report.iterations;
+                summary.max_penetration = summary.max_penetration.max(report.max_penetration);
+                let row = history_row(&sim, scene, Some(&report));
+                error = Some(history.row(&row).err().unwrap_or(e));
+                break;
+            }
+        }
         summary.steps = report.step;
         summary.total_iterations += report.iterations;
         summary.max_penetration = summary.max_penetration.max(report.max_penetration);
@@ -644,9 +670,7 @@ where
             }
         }
         if vtk_on && (now >= carried.next_vtk * (1.0 - 1e-9) || last) {
-            while carried.next_vtk <= now * (1.0 + 1e-9) {
-                carried.next_vtk += scene.output.vtk_interval;
-            }
+            carried.next_vtk = next_after(carried.next_vtk, now, scene.output.vtk_interval);
             if let Err(e) = write_frame(&sim, out, stem, &mut carried.pvd, &report.contacts) {
                 error = Some(e);
                 break;
@@ -698,6 +722,7 @@ where
             ));
         }
     }
+    summary.warnings.extend(monitor.warnings());
     // Booked energy growth closes the account, so energy_drift cannot show it: say it here.
     if e.dissipated < -1e-9 * reference {
         summary.warnings.push(format!(
@@ -721,6 +746,18 @@ where
         })),
         (None, Ok(())) => Ok(summary),
     }
+}
+
+/// The first multiple of `interval` after `now` (from `next` on): a few additions as the runs
+/// always did, then a product, so that no interval, however small, keeps it counting.
+fn next_after(mut next: f64, now: f64, interval: f64) -> f64 {
+    for _ in 0..64 {
+        if next > now * (1.0 + 1e-9) {
+            return next;
+        }
+        next += interval;
+    }
+    ((now * (1.0 + 1e-9) / interval).floor() + 1.0) * interval
 }
 
 fn empty_summary() -> Summary {

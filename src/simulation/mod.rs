@@ -7,6 +7,7 @@
 //!   `contact_terms` (what each detected pair adds to the residual and tangent) and
 //!   `linear_solve` (the factorisations and preconditioned solves).
 //! * [`observe`]: the hooks a recorder receives.
+//! * `monitor`: overlaps in the current configuration, the energy created beyond the input.
 
 use faer::sparse::SparseColMat;
 use nalgebra::SVector;
@@ -16,6 +17,7 @@ mod contact_terms;
 mod damping;
 mod linear_solve;
 pub mod model;
+mod monitor;
 mod newton;
 pub mod observe;
 mod obstacle_motion;
@@ -25,6 +27,7 @@ mod step;
 mod symmetric_matrix;
 
 pub use model::{Body, Constraint, MassKind, Model, RayleighDamping, Settings};
+pub use monitor::{energy_created, Overlap, RunMonitor, ENERGY_FAILURE, ENERGY_WARNING};
 pub use rotation::SMALL_STRAIN_ROTATION_LIMIT;
 pub use state::{ContactMemory, FactorRecord, MasterId, State};
 pub use symmetric_matrix::SymmetricMatrix;
@@ -90,6 +93,8 @@ pub struct StepReport {
     /// Slave points in contact at the end of the step, with their gap [m] and normal force [N]
     /// (global node, gap, force).
     pub contacts: Vec<(usize, f64, f64)>,
+    /// Times the step was cut in two (no convergence, or a cell turned inside out).
+    pub cuts: usize,
 }
 
 /// A simulation of deformable bodies in D dimensions: a [`Model`], a [`State`], what is

@@ -74,6 +74,7 @@ where
                 let first = self.advance_cut(0.5 * h, recorder, depth + 1, false)?;
                 let mut second = self.advance_cut(0.5 * h, recorder, depth + 1, last_piece)?;
                 second.iterations += first.iterations;
+                second.cuts += first.cuts + 1;
                 second.time_step = h;
                 for (a, b) in second.reactions.iter_mut().zip(&first.reactions) {
                     for (x, y) in a.iter_mut().zip(b) {
@@ -493,6 +494,7 @@ where
             reactions,
             contact_forces,
             contacts,
+            cuts: 0,
         };
         recorder.step_end(self, &report);
         Ok(report)

@@ -204,7 +204,7 @@ impl SparseCholesky {
             self.symbolic
                 .factorize_numeric_llt_scratch::<T>(par, Default::default()),
         )
-        .map_err(|e| failure(format!("factorisation workspace: {e:?}")))?;
+        .map_err(|_| failure("not enough memory for the factorisation workspace".into()))?;
         self.symbolic
             .factorize_numeric_llt::<T>(
                 &mut values,
@@ -216,8 +216,11 @@ impl SparseCholesky {
                 Default::default(),
             )
             .map_err(|e| {
+                // In words, not faer's type names.
+                let faer::linalg::solvers::LltError::NonPositivePivot { index } = e;
+                let what = format!("pivot {index} of the factorisation is not positive");
                 failure(format!(
-                    "{e:?}: the iteration matrix is not positive definite (a body with \
+                    "{what}: the iteration matrix is not positive definite (a body with \
                      no mass and no support, or a non-physical material)"
                 ))
             })?;

@@ -6,9 +6,11 @@
 //!
 //! `support.rs`: running the binary and checking messages; `invalid_input.rs`: bad scenes
 //! (exit status 2); `valid_runs.rs`: runs, their outputs, `--set`, instability (exit status 3);
-//! `checkpoints.rs`: checkpoints, `resume`, interrupts and atomic outputs.
+//! `checkpoints.rs`: checkpoints, `resume`, interrupts and atomic outputs;
+//! `reliability.rs`: issue 14 (runs that end, limits, overlaps, messages, monitors).
 
 mod checkpoints;
 mod invalid_input;
+mod reliability;
 mod support;
 mod valid_runs;

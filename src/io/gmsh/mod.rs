@@ -138,6 +138,8 @@ pub struct GmshElement {
     pub physical_tag: Option<i32>,
     /// Elementary (geometric entity) tag; 0 when a 2.2 file gives fewer than two tags.
     pub entity_tag: i32,
+    /// The element's own tag (number) in the file.
+    pub tag: usize,
 }
 
 /// A mesh read from a Gmsh file.
@@ -296,6 +298,32 @@ where
     };
     let g = read_gmsh(path).map_err(|e| file_error(e.to_string()))?;
     from_gmsh(&g).map_err(file_error)
+}
+
+/// The file's element tag of each cell of [`from_gmsh`]'s mesh, in the mesh's cell order
+/// (blocks of one kind in order of first appearance, file order within a block), so that
+/// messages about a cell can name the element a user sees in Gmsh.
+pub fn cell_tags<const D: usize>(g: &GmshMesh) -> Vec<usize> {
+    let cells: Vec<&GmshElement> = g
+        .elements
+        .iter()
+        .filter(|el| el.kind.dimension() == Some(D))
+        .collect();
+    let mut kinds: Vec<GmshCellKind> = Vec::new();
+    for el in &cells {
+        if !kinds.contains(&el.kind) {
+            kinds.push(el.kind);
+        }
+    }
+    kinds
+        .iter()
+        .flat_map(|k| {
+            cells
+                .iter()
+                .filter(move |el| el.kind == *k)
+                .map(|el| el.tag)
+        })
+        .collect()
 }
 
 /// Converts a parsed Gmsh mesh (see [`from_gmsh_file`]).

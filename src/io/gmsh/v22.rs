@@ -165,6 +165,7 @@ fn make_element(
         nodes,
         physical_tag: tags.first().copied().filter(|&t| t != 0),
         entity_tag: tags.get(1).copied().unwrap_or(0),
+        tag: elm,
     })
 }
 

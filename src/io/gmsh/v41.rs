@@ -302,6 +302,7 @@ fn convert_v41(
                 nodes,
                 physical_tag,
                 entity_tag: block.entity_tag,
+                tag: element,
             });
         }
     }

@@ -138,6 +138,21 @@ impl LoadedScene {
         if !(s.end_time >= 0.0 && s.end_time.is_finite()) {
             return Err(self.error("simulation.end_time", s.end_time, "a finite value >= 0 [s]"));
         }
+        let steps = super::step_count(s.end_time, time_step);
+        if steps > super::MAX_STEPS {
+            return Err(self.error(
+                "simulation.time_step",
+                format!(
+                    "{} s with end_time = {} s: {steps:.1e} steps",
+                    super::plain(time_step),
+                    super::plain(s.end_time)
+                ),
+                format!(
+                    "at most {:e} steps (a larger time_step or a shorter end_time)",
+                    super::MAX_STEPS
+                ),
+            ));
+        }
         if !(0.0..=1.0).contains(&s.alpha) {
             return Err(self.error("simulation.alpha", s.alpha, "a number in [0, 1]"));
         }

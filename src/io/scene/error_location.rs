@@ -129,6 +129,9 @@ pub(super) fn split_serde_message(msg: &str) -> (String, String) {
             "f64" => "a number",
             "i64" => "an integer",
             "a boolean" | "bool" => "true or false",
+            // serde's name of a Rust type (`struct SimulationSection`): a table to the user.
+            other if other.starts_with("struct ") => "a table of keys",
+            other if other.starts_with("enum ") => "one of the documented values",
             other => other,
         };
         return (found.to_string(), expected.to_string());

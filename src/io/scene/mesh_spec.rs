@@ -5,6 +5,7 @@ use std::collections::BTreeMap;
 
 use nalgebra::SVector;
 
+use super::plain;
 use super::schema::MeshSpec;
 use super::LoadedScene;
 use crate::dim::{Dim, SpatialDim};
@@ -29,6 +30,25 @@ impl LoadedScene {
                 key,
                 format!("{c:?}"),
                 format!("at most {MAX_CELLS} cells in all"),
+            ));
+        }
+        // Before the generator allocates: the grid's nodes times N unknowns each, and the
+        // least memory their matrices take (see `limits`).
+        let nodes: f64 = c.iter().map(|&n| n as f64 + 1.0).product();
+        let unknowns = nodes * N as f64;
+        let needed = super::memory_lower_bound(unknowns, N);
+        let limit = super::memory_limit();
+        if needed > limit {
+            return Err(self.error(
+                key,
+                format!(
+                    "{c:?}: {nodes:.1e} nodes, {unknowns:.1e} unknowns, at least {} of matrices",
+                    super::limits::bytes(needed)
+                ),
+                format!(
+                    "a mesh whose matrices fit in this machine's {} of memory (fewer cells)",
+                    super::limits::bytes(limit)
+                ),
             ));
         }
         let mut out = [0usize; N];
@@ -120,14 +140,16 @@ impl LoadedScene {
                     ));
                 }
                 let path = self.base_dir().join(file);
-                let mesh = crate::io::gmsh::from_gmsh_file::<D>(&path).map_err(|e| match e {
-                    Error::MeshFile { file, message } => self.error(
+                let unreadable = |message: String| {
+                    self.error(
                         &format!("{key}.file"),
-                        format!("{} ({message})", file.display()),
+                        format!("{} ({message})", path.display()),
                         "a readable Gmsh MSH 2.2 or 4.1 file",
-                    ),
-                    other => other,
-                })?;
+                    )
+                };
+                let gmsh =
+                    crate::io::gmsh::read_gmsh(&path).map_err(|e| unreadable(e.to_string()))?;
+                let mesh = crate::io::gmsh::from_gmsh::<D>(&gmsh).map_err(unreadable)?;
                 let groups = mesh.node_sets.clone().into_iter().collect();
                 mesh.validate_topology(body).map_err(|e| match e {
                     Error::Mesh { message, .. } => self.error(
@@ -137,6 +159,26 @@ impl LoadedScene {
                     ),
                     other => other,
                 })?;
+                // Cells named by their Gmsh element tag, the number a user sees in Gmsh.
+                if let Err(Error::InvertedElement {
+                    cell,
+                    kind,
+                    jacobian,
+                    ..
+                }) = mesh.check_quality(body)
+                {
+                    let tag = crate::io::gmsh::cell_tags::<D>(&gmsh).get(cell).copied();
+                    return Err(self.error(
+                        key,
+                        format!(
+                            "Gmsh element {} (cell {cell} of the body) {kind} (Jacobian \
+                             determinant {jacobian:.3e})",
+                            tag.map_or("?".to_string(), |t| t.to_string())
+                        ),
+                        "cells with a positive Jacobian everywhere (check node ordering and \
+                         geometry)",
+                    ));
+                }
                 Ok((mesh, groups))
             }
             (Some(g), None) => {
@@ -227,6 +269,16 @@ impl LoadedScene {
                                     "a radius > inner_radius [m]",
                                 )
                             })?;
+                            // Each radius blamed by its own key (the generator's message
+                            // would name outer_radius for a NaN inner one).
+                            let ri = self.positive(&format!("{key}.inner_radius"), ri, "m")?;
+                            if !(ro > ri && ro.is_finite()) {
+                                return Err(self.error(
+                                    &format!("{key}.outer_radius"),
+                                    ro,
+                                    format!("a finite radius > inner_radius = {} [m]", plain(ri)),
+                                ));
+                            }
                             let cells = if D == 2 {
                                 self.cells::<2>(&format!("{key}.cells"), &spec.cells)?
                             } else {

@@ -5,11 +5,13 @@
 //! locations); [`LoadedScene::build`] validates it into a [`Scene`] for dimension 2 or 3.
 //! The parts: `schema` (the serde types, as written), `overrides` (`--set`),
 //! `error_location` (serde errors as key, found, expected and line), `build` (settings,
-//! contact, bodies, probes, output), `mesh_spec` (generators and Gmsh files) and
-//! `obstacle_spec` (obstacle shapes).
+//! contact, bodies, probes, output), `mesh_spec` (generators and Gmsh files),
+//! `obstacle_spec` (obstacle shapes) and `limits` (steps and memory checked before anything is
+//! allocated, the number format of messages).
 
 mod build;
 mod error_location;
+mod limits;
 mod mesh_spec;
 mod obstacle_spec;
 mod overrides;
@@ -29,6 +31,9 @@ use crate::error::{Error, Result};
 use crate::simulation::{Body, Settings};
 use error_location::{
     line_of, refine_key, scene_path, split_serde_message, untagged_expectation, value_at,
+};
+pub use limits::{
+    memory_limit, memory_lower_bound, plain, step_count, DEFAULT_MEMORY_LIMIT, MAX_STEPS,
 };
 use overrides::apply_override;
 
@@ -102,6 +107,14 @@ pub fn parse(path: &Path, text: &str, overrides: &[String]) -> Result<LoadedScen
     })
 }
 
+/// A found value that is a number, in [`plain`] notation (never 309 digits).
+fn plain_found(found: String) -> String {
+    match found.parse::<f64>() {
+        Ok(x) => plain(x),
+        Err(_) => found,
+    }
+}
+
 fn empty_scene() -> SceneFile {
     SceneFile {
         simulation: SimulationSection {
@@ -152,7 +165,7 @@ impl LoadedScene {
             file: self.path.clone(),
             location: self.location(key),
             key: key.to_string(),
-            found: found.to_string(),
+            found: plain_found(found.to_string()),
             expected: expected.into(),
         }
     }

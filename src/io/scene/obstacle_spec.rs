@@ -2,6 +2,8 @@
 //! motion schedule (with angular velocities about the pivot) and friction, validated for
 //! dimension D.
 
+use nalgebra::SVector;
+
 use super::schema::{ObstacleSection, ShapeSpec};
 use super::LoadedScene;
 use crate::contact::{MotionSegment, Obstacle, ObstacleShape};
@@ -148,6 +150,21 @@ impl LoadedScene {
                         format!("a list of facets of {D} vertex indices"),
                     )
                 })?;
+                let what = if D == 2 { "segment" } else { "triangle" };
+                if verts.is_empty() {
+                    return Err(self.error(
+                        &format!("{key}.vertices"),
+                        "an empty list",
+                        format!("the vertices of at least one {what}"),
+                    ));
+                }
+                if idx.is_empty() {
+                    return Err(self.error(
+                        &format!("{key}.indices"),
+                        "an empty list",
+                        format!("at least one {what} of {D} vertex indices"),
+                    ));
+                }
                 let mut vs = Vec::new();
                 for (i, v) in verts.iter().enumerate() {
                     vs.push(self.vector::<D>(&format!("{key}.vertices.{i}"), v)?);
@@ -161,7 +178,27 @@ impl LoadedScene {
                             format!("{D} indices below {}", vs.len()),
                         ));
                     }
-                    facets.push(f.iter().map(|&k| k as usize).collect());
+                    let ids: Vec<usize> = f.iter().map(|&k| k as usize).collect();
+                    let mut corners = [SVector::<f64, D>::zeros(); D];
+                    for (c, &k) in corners.iter_mut().zip(&ids) {
+                        *c = vs[k];
+                    }
+                    // The measure, computed as the contact search does: zero is a facet with
+                    // no normal, infinite one whose coordinates overflow when squared.
+                    let (measure, _) = <Dim<D>>::facet_measure_normal(&corners);
+                    if !(measure > 0.0 && measure.is_finite()) {
+                        let (shape, size) = if D == 2 {
+                            ("segment", "length")
+                        } else {
+                            ("triangle", "area")
+                        };
+                        return Err(self.error(
+                            &format!("{key}.indices.{i}"),
+                            format!("{f:?}: a {shape} of {size} {}", super::plain(measure)),
+                            format!("a {shape} of finite, positive {size}"),
+                        ));
+                    }
+                    facets.push(ids);
                 }
                 ObstacleShape::Facets {
                     vertices: vs,

@@ -11,8 +11,21 @@ pub(super) fn apply_override(
         .split_once('=')
         .ok_or_else(|| "expected KEY=VALUE, e.g. simulation.time_step=2e-4".to_string())?;
     let key = key.trim();
-    let literal: toml::Table = toml::from_str(&format!("v = {}", value.trim()))
-        .map_err(|e| format!("the value is not a TOML literal ({})", e.message()))?;
+    let literal: toml::Table = toml::from_str(&format!("v = {}", value.trim())).map_err(|e| {
+        // Say what the key holds now rather than the parser's guess ("invalid boolean").
+        let expected = match existing(table, key.trim()) {
+            Some(toml::Value::Float(_) | toml::Value::Integer(_)) => {
+                "a number was expected (e.g. 2e-4)".to_string()
+            }
+            Some(toml::Value::String(s)) => format!("a quoted string was expected (e.g. \"{s}\")"),
+            Some(toml::Value::Boolean(_)) => "true or false was expected".to_string(),
+            _ => format!(
+                "expected a number, a quoted string, true, false or an array ({})",
+                e.message().trim_end()
+            ),
+        };
+        format!("`{}` is not a TOML literal: {expected}", value.trim())
+    })?;
     let value = literal.get("v").cloned().ok_or("empty value")?;
     let parts: Vec<&str> = key.split('.').collect();
     if parts.iter().any(|p| p.is_empty()) {
@@ -60,4 +73,24 @@ pub(super) fn apply_override(
     path.push(parts[i].to_string());
     current.insert(parts[i].to_string(), value);
     Ok(path.join("."))
+}
+
+/// The value a dotted key holds in the table, if any (`bodies.0.` and `obstacles.NAME.` address
+/// list items).
+fn existing<'a>(table: &'a toml::Table, key: &str) -> Option<&'a toml::Value> {
+    let mut parts = key.split('.');
+    let mut value = table.get(parts.next()?)?;
+    for part in parts {
+        value = match value {
+            toml::Value::Table(t) => t.get(part)?,
+            toml::Value::Array(items) => match part.parse::<usize>() {
+                Ok(n) => items.get(n)?,
+                Err(_) => items
+                    .iter()
+                    .find(|it| it.get("name").and_then(|n| n.as_str()) == Some(part))?,
+            },
+            _ => return None,
+        };
+    }
+    Some(value)
 }

@@ -1,0 +1,642 @@
+//! Issue 14, hostile input and silent failures: every run ends, resources are estimated up
+//! front, polylines are validated and overlaps reported, messages in words, and monitors that
+//! speak up. One test per defect, named after it, with the message expected.
+
+use std::fs;
+use std::path::{Path, PathBuf};
+use std::process::{Output, Stdio};
+use std::time::{Duration, Instant};
+
+use serde_json::Value;
+
+use super::support::*;
+
+/// A block above a polyline floor (drawn right to left: solid below).
+const BLOCK: &str = r#"[simulation]
+dimension = 2
+time_step = 1.0e-3
+end_time = 0.01
+gravity = [0.0, -9.81]
+
+[contact]
+method = "soft_way"
+penalty = 1.0e10
+
+[[bodies]]
+name = "block"
+mesh = { generator = "rectangle", min = [0.0, 0.1], max = [1.0, 0.6], cells = [4, 2], element = "quad4" }
+material = { model = "linear_elastic", youngs_modulus = 1.0e6, poissons_ratio = 0.3, density = 1000.0 }
+
+[[obstacles]]
+name = "floor"
+shape = { type = "polyline", vertices = [[4.0, 0.0], [-4.0, 0.0]], indices = [[0, 1]] }
+"#;
+
+/// A block hitting a floor at 50 m/s with explicit projection.
+const IMPACT: &str = r#"[simulation]
+dimension = 2
+time_step = 2.0e-3
+end_time = 0.04
+
+[contact]
+method = "explicit_projection"
+
+[[bodies]]
+name = "block"
+mesh = { generator = "rectangle", min = [0.0, 0.01], max = [0.1, 0.11], cells = [4, 4], element = "quad4" }
+material = { model = "linear_elastic", youngs_modulus = 1.0e7, poissons_ratio = 0.3, density = 1000.0 }
+initial_velocity = [0.0, -50.0]
+
+[[obstacles]]
+name = "floor"
+shape = { type = "halfspace", point = [0.0, 0.0], normal = [0.0, 1.0] }
+"#;
+
+/// Writes `text` as a scene in a folder of its own (kept while the first value lives), so
+/// that the working folder of a run stays empty when nothing may be written.
+fn scene(text: &str) -> (tempfile::TempDir, PathBuf) {
+    let dir = tempdir();
+    let path = dir.path().join("scene.toml");
+    fs::write(&path, text).unwrap();
+    (dir, path)
+}
+
+/// Runs `softway ARGS` in `dir`, killed after `limit`: a run that does not end is a failure.
+fn run_bounded(dir: &Path, args: &[&str], limit: Duration) -> Output {
+    let mut child = softway()
+        .current_dir(dir)
+        .args(args)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("the softway binary runs");
+    let start = Instant::now();
+    while child.try_wait().unwrap().is_none() {
+        if start.elapsed() > limit {
+            child.kill().unwrap();
+            panic!("{args:?} did not end within {limit:?}");
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    child.wait_with_output().unwrap()
+}
+
+fn error_line(o: &Output) -> String {
+    stderr(o)
+        .lines()
+        .find(|l| l.starts_with("error"))
+        .unwrap_or_default()
+        .to_string()
+}
+
+fn warnings(out: &Path) -> Vec<String> {
+    let s: Value = serde_json::from_str(&fs::read_to_string(out.join("summary.json")).unwrap())
+        .expect("summary.json");
+    s["warnings"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|w| w.as_str().unwrap().to_string())
+        .collect()
+}
+
+// ---------------------------------------------------------------------------------------------
+// Every run ends.
+
+#[test]
+fn polyline_vertex_at_minus_1e200_ends() {
+    let dir = tempdir();
+    let (_scenes, file) =
+        scene(&BLOCK.replace("[[4.0, 0.0], [-4.0, 0.0]]", "[[-1e200, 0.0], [4.0, 0.0]]"));
+    let out = dir.path().join("out");
+    let args = [
+        "run",
+        file.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ];
+    let o = run_bounded(dir.path(), &args, Duration::from_secs(60));
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert_eq!(
+        error_line(&o),
+        format!(
+            "error: {}: line 18: `obstacles.0.shape.indices.0`: found [0, 1]: a segment of length \
+             inf, expected a segment of finite, positive length",
+            file.display()
+        )
+    );
+}
+
+#[test]
+fn initial_velocity_1e308_with_a_polyline_ends() {
+    let dir = tempdir();
+    let (_scenes, file) = scene(BLOCK);
+    let out = dir.path().join("out");
+    let args = [
+        "run",
+        file.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--set",
+        "bodies.0.initial_velocity=[0.0, -1e308]",
+    ];
+    let o = run_bounded(dir.path(), &args, Duration::from_secs(60));
+    assert_eq!(o.status.code(), Some(3), "{}", stderr(&o));
+    assert!(
+        error_line(&o).starts_with("error: numerical instability at step 1 (t = 1.000000e-3 s):"),
+        "{}",
+        stderr(&o)
+    );
+}
+
+// ---------------------------------------------------------------------------------------------
+// Resource limits up front.
+
+#[test]
+fn time_step_1e_300_is_refused_with_the_step_estimate() {
+    let dir = tempdir();
+    let (_scenes, file) = scene(BLOCK);
+    let err = assert_invalid(
+        dir.path(),
+        &[
+            "check",
+            file.to_str().unwrap(),
+            "--set",
+            "simulation.time_step=1e-300",
+        ],
+    );
+    assert_eq!(
+        err.trim_end(),
+        format!(
+            "error: {}: --set: `simulation.time_step`: found 1e-300 s with end_time = 0.01 s: \
+             1.0e298 steps, expected at most 1e8 steps (a larger time_step or a shorter end_time)",
+            file.display()
+        )
+    );
+}
+
+#[test]
+fn generator_just_under_the_cell_cap_is_refused_with_a_memory_estimate() {
+    let dir = tempdir();
+    let (_scenes, file) = scene(&BLOCK
+            .replace("dimension = 2", "dimension = 3")
+            .replace("gravity = [0.0, -9.81]", "")
+            .replace(
+                r#"{ generator = "rectangle", min = [0.0, 0.1], max = [1.0, 0.6], cells = [4, 2], element = "quad4" }"#,
+                r#"{ generator = "box", min = [0.0, 0.0, 0.0], max = [1.0, 1.0, 1.0], cells = [464, 464, 464], element = "hex8" }"#,
+            )
+            .replace(
+                r#"{ type = "polyline", vertices = [[4.0, 0.0], [-4.0, 0.0]], indices = [[0, 1]] }"#,
+                r#"{ type = "halfspace", point = [0.0, 0.0, 0.0], normal = [0.0, 1.0, 0.0] }"#,
+            ),
+    );
+    let err = assert_invalid(dir.path(), &["check", file.to_str().unwrap()]);
+    let expected = format!(
+        "error: {}: line 13: `bodies.0.mesh.cells`: found [464, 464, 464]: 1.0e8 nodes, 3.0e8 \
+         unknowns, at least 3.3e11 bytes (310 GiB) of matrices, expected a mesh whose matrices \
+         fit in this machine's ",
+        file.display()
+    );
+    assert!(err.starts_with(&expected), "{err}");
+}
+
+// ---------------------------------------------------------------------------------------------
+// Scene validation.
+
+#[test]
+fn empty_polyline_is_refused() {
+    let dir = tempdir();
+    let (_scenes, file) = scene(BLOCK);
+    let path = file.to_str().unwrap();
+    let err = assert_invalid(
+        dir.path(),
+        &["check", path, "--set", "obstacles.floor.shape.vertices=[]"],
+    );
+    assert_eq!(
+        err.trim_end(),
+        format!(
+            "error: {path}: --set: `obstacles.0.shape.vertices`: found an empty list, expected \
+             the vertices of at least one segment"
+        )
+    );
+    let err = assert_invalid(
+        dir.path(),
+        &["check", path, "--set", "obstacles.floor.shape.indices=[]"],
+    );
+    assert_eq!(
+        err.trim_end(),
+        format!(
+            "error: {path}: --set: `obstacles.0.shape.indices`: found an empty list, expected \
+             at least one segment of 2 vertex indices"
+        )
+    );
+}
+
+#[test]
+fn zero_length_segment_is_refused() {
+    let dir = tempdir();
+    let (_scenes, file) =
+        scene(&BLOCK.replace("[[4.0, 0.0], [-4.0, 0.0]]", "[[1.0, 0.0], [1.0, 0.0]]"));
+    let err = assert_invalid(dir.path(), &["check", file.to_str().unwrap()]);
+    assert_eq!(
+        err.trim_end(),
+        format!(
+            "error: {}: line 18: `obstacles.0.shape.indices.0`: found [0, 1]: a segment of \
+             length 0, expected a segment of finite, positive length",
+            file.display()
+        )
+    );
+}
+
+#[test]
+fn zero_area_facet_is_refused() {
+    let dir = tempdir();
+    let (_scenes, file) = scene(&BLOCK
+            .replace("dimension = 2", "dimension = 3")
+            .replace("gravity = [0.0, -9.81]", "")
+            .replace(
+                r#"{ generator = "rectangle", min = [0.0, 0.1], max = [1.0, 0.6], cells = [4, 2], element = "quad4" }"#,
+                r#"{ generator = "box", min = [0.0, 0.1, 0.0], max = [1.0, 0.6, 1.0], cells = [2, 2, 2], element = "hex8" }"#,
+            )
+            .replace(
+                r#"{ type = "polyline", vertices = [[4.0, 0.0], [-4.0, 0.0]], indices = [[0, 1]] }"#,
+                r#"{ type = "trimesh", vertices = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [2.0, 0.0, 0.0]], indices = [[0, 1, 2]] }"#,
+            ),
+    );
+    let err = assert_invalid(dir.path(), &["check", file.to_str().unwrap()]);
+    assert_eq!(
+        err.trim_end(),
+        format!(
+            "error: {}: line 18: `obstacles.0.shape.indices.0`: found [0, 1, 2]: a triangle of \
+             area 0, expected a triangle of finite, positive area",
+            file.display()
+        )
+    );
+}
+
+/// The block starts 0.1 m inside the floor: `check` says so, the run's summary too, and the
+/// t = 0 row of history.csv reports the overlap as max_penetration.
+#[test]
+fn overlap_at_t0_is_reported() {
+    let dir = tempdir();
+    let (_scenes, file) = scene(&BLOCK.replace("min = [0.0, 0.1]", "min = [0.0, -0.1]"));
+    let expected = "body `block` overlaps obstacle `floor` at t = 0: 5 node(s) inside, the \
+                    deepest 1.000e-1 m; move the bodies apart in the scene (contact methods push \
+                    an overlap out in one step, with an impulse that is not physical); a polyline \
+                    is solid on the left of each segment (from its first vertex to its second), \
+                    a trimesh behind each triangle (counter-clockwise seen from outside): if the \
+                    body should be on the other side, reverse each facet's vertex order";
+    let o = run_in(dir.path(), &["check", file.to_str().unwrap()]);
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    assert!(
+        stdout(&o).contains(&format!("  warning: {expected}\n")),
+        "{}",
+        stdout(&o)
+    );
+    let out = dir.path().join("out");
+    let o = run_in(
+        dir.path(),
+        &[
+            "run",
+            file.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+        ],
+    );
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    assert!(
+        warnings(&out).iter().any(|w| w == expected),
+        "{:?}",
+        warnings(&out)
+    );
+    let history = fs::read_to_string(out.join("history.csv")).unwrap();
+    let t0: Vec<&str> = history.lines().nth(1).unwrap().split(',').collect();
+    assert_eq!(t0[8], "0.1", "max_penetration at t = 0: {history}");
+}
+
+/// The same floor drawn left to right is solid above: the block on it is inside, and `check`
+/// says which way round a polyline is solid.
+#[test]
+fn polyline_drawn_the_wrong_way_is_reported() {
+    let dir = tempdir();
+    let (_scenes, file) =
+        scene(&BLOCK.replace("[[4.0, 0.0], [-4.0, 0.0]]", "[[-4.0, 0.0], [4.0, 0.0]]"));
+    let o = run_in(dir.path(), &["check", file.to_str().unwrap()]);
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    assert!(
+        stdout(&o).contains("  warning: body `block` overlaps obstacle `floor` at t = 0:")
+            && stdout(&o).contains("a polyline is solid on the left of each segment"),
+        "{}",
+        stdout(&o)
+    );
+}
+
+// ---------------------------------------------------------------------------------------------
+// Messages.
+
+#[test]
+fn time_step_fast_says_a_number_was_expected() {
+    let dir = tempdir();
+    let (_scenes, file) = scene(BLOCK);
+    let err = assert_invalid(
+        dir.path(),
+        &[
+            "check",
+            file.to_str().unwrap(),
+            "--set",
+            "simulation.time_step=fast",
+        ],
+    );
+    assert_eq!(
+        err.trim_end(),
+        format!(
+            "error: {}: --set simulation.time_step=fast: `fast` is not a TOML literal: a number \
+             was expected (e.g. 2e-4)",
+            file.display()
+        )
+    );
+}
+
+#[test]
+fn table_set_to_a_number_names_no_rust_type() {
+    let dir = tempdir();
+    let (_scenes, file) = scene(BLOCK);
+    let err = assert_invalid(
+        dir.path(),
+        &["check", file.to_str().unwrap(), "--set", "simulation=3"],
+    );
+    assert_eq!(
+        err.trim_end(),
+        format!(
+            "error: {}: --set: `simulation`: found integer `3`, expected a table of keys",
+            file.display()
+        )
+    );
+}
+
+#[test]
+fn inner_radius_nan_blames_inner_radius() {
+    let dir = tempdir();
+    let file = repo().join("fixtures/scenes/ring_drop.toml");
+    let err = assert_invalid(
+        dir.path(),
+        &[
+            "check",
+            file.to_str().unwrap(),
+            "--set",
+            "bodies.0.mesh.inner_radius=nan",
+        ],
+    );
+    assert_eq!(
+        err.trim_end(),
+        format!(
+            "error: {}: --set: `bodies.0.mesh.inner_radius`: found NaN, expected a finite value \
+             > 0 [m]",
+            file.display()
+        )
+    );
+}
+
+#[test]
+fn out_naming_a_file_is_invalid_up_front() {
+    let dir = tempdir();
+    let (_scenes, file) = scene(BLOCK);
+    let afile = dir.path().join("afile");
+    fs::write(&afile, "").unwrap();
+    let o = run_in(
+        dir.path(),
+        &[
+            "run",
+            file.to_str().unwrap(),
+            "--out",
+            afile.to_str().unwrap(),
+        ],
+    );
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert_eq!(
+        stderr(&o),
+        format!(
+            "error: {}: --out names a file; expected a folder (created if missing)\n",
+            afile.display()
+        )
+    );
+}
+
+/// Plane mass per metre of thickness, friction by its scene name, no penalty for implicit
+/// projection, numbers never 300 digits long.
+#[test]
+fn check_summary_in_words() {
+    let dir = tempdir();
+    let (_scenes, file) = scene(BLOCK);
+    let o = run_in(
+        dir.path(),
+        &[
+            "check",
+            file.to_str().unwrap(),
+            "--set",
+            "contact.method=\"implicit_projection\"",
+            "--set",
+            "simulation.end_time=1e300",
+            "--set",
+            "simulation.time_step=1e293",
+        ],
+    );
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let text = stdout(&o);
+    assert!(
+        text.contains(
+            "  2D plane_strain, h = 1e293 s, end_time = 1e300 s (10000000 steps), alpha = 0.75, beta = 0.25\n"
+        ),
+        "{text}"
+    );
+    assert!(
+        text.contains("mass 5.000000e2 kg/m (per metre of thickness)"),
+        "{text}"
+    );
+    assert!(
+        text.contains("  contact: implicit_projection, friction frictionless\n"),
+        "{text}"
+    );
+    let o = run_in(dir.path(), &["check", file.to_str().unwrap()]);
+    assert!(
+        stdout(&o).contains("  contact: soft_way, penalty 1e10 Pa/m, friction frictionless\n"),
+        "{}",
+        stdout(&o)
+    );
+}
+
+/// The inverted cell of a Gmsh mesh is named by its element tag in the file (element 3), not
+/// only by the body's internal cell index (1).
+#[test]
+fn inverted_cell_names_the_gmsh_element_tag() {
+    let dir = tempdir();
+    let file = bad("mesh_inverted");
+    let err = assert_invalid(dir.path(), &["check", file.to_str().unwrap()]);
+    assert_eq!(
+        err.trim_end(),
+        format!(
+            "error: {}: line 9: `bodies.0.mesh`: found Gmsh element 3 (cell 1 of the body) \
+             inverted (Jacobian determinant -1.000e-1), expected cells with a positive Jacobian \
+             everywhere (check node ordering and geometry)",
+            file.display()
+        )
+    );
+}
+
+/// A body of almost no mass: the factorisation fails, in words (it printed faer's
+/// `NonPositivePivot { index: 1 }`).
+#[test]
+fn factorisation_failure_names_no_solver_type() {
+    let dir = tempdir();
+    let (_scenes, file) = scene(BLOCK);
+    let out = dir.path().join("out");
+    let o = run_in(
+        dir.path(),
+        &[
+            "run",
+            file.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+            "--set",
+            "bodies.0.material.density=1e-300",
+        ],
+    );
+    assert_eq!(o.status.code(), Some(3), "{}", stderr(&o));
+    let err = error_line(&o);
+    assert!(
+        err.starts_with("error: factorisation failed at step 1: pivot ")
+            && err.ends_with(
+                " of the factorisation is not positive: the iteration matrix is not positive \
+                 definite (a body with no mass and no support, or a non-physical material)"
+            ),
+        "{err}"
+    );
+}
+
+// ---------------------------------------------------------------------------------------------
+// Monitors.
+
+/// Explicit projection at 50 m/s with a large step: 25 times the input energy after one
+/// step: exit status 3 with the energy account.
+#[test]
+fn gross_energy_creation_exits_3() {
+    let dir = tempdir();
+    let (_scenes, file) = scene(IMPACT);
+    let out = dir.path().join("out");
+    let o = run_in(
+        dir.path(),
+        &[
+            "run",
+            file.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+        ],
+    );
+    assert_eq!(o.status.code(), Some(3), "{}", stderr(&o));
+    assert_eq!(
+        error_line(&o),
+        "error: energy created at step 1 (t = 2.000000e-3 s): the energy the time scheme \
+         conserves (kinetic + internal + contact) plus the dissipated energy is 3.300e5 J, \
+         2540.0% above the input E(0) + |external work| = 1.250e4 J (the run stops above \
+         1000%); explicit_projection's end-of-step correction puts energy in: use \
+         implicit_projection, or a smaller time_step"
+    );
+    let history = fs::read_to_string(out.join("history.csv")).unwrap();
+    assert_eq!(
+        history.lines().count(),
+        3,
+        "header, t = 0 and the step that stopped it"
+    );
+}
+
+/// The same impact with a smaller step creates energy too, below the gross threshold: a
+/// warning in summary.json, exit 0.
+#[test]
+fn energy_creation_is_a_warning() {
+    let dir = tempdir();
+    let (_scenes, file) = scene(IMPACT);
+    let out = dir.path().join("out");
+    let o = run_in(
+        dir.path(),
+        &[
+            "run",
+            file.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+            "--set",
+            "simulation.time_step=1e-3",
+            "--set",
+            "simulation.end_time=0.02",
+        ],
+    );
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let w = warnings(&out);
+    assert!(
+        w.iter().any(|w| w.starts_with(
+            "the run created energy: the energy the time scheme conserves (kinetic + internal + \
+             contact) plus the dissipated energy exceeded the input E(0) + |external work| by \
+             499.3% at step 1 (t = 1.000000e-3 s), 924.6% at most (warning above 5%, the run \
+             stops above 1000%); explicit_projection's end-of-step correction puts energy in"
+        )),
+        "{w:?}"
+    );
+}
+
+/// The bundled gripper cuts its step 100 (the jaws close): the summary says so.
+#[test]
+fn step_cuts_are_a_warning() {
+    let dir = tempdir();
+    let out = dir.path().join("out");
+    let file = repo().join("fixtures/scenes/gripper.toml");
+    let o = run_in(
+        dir.path(),
+        &[
+            "run",
+            file.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+            "--set",
+            "simulation.end_time=0.105",
+            "--set",
+            "output.vtk_interval=0",
+        ],
+    );
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    assert!(
+        warnings(&out).iter().any(|w| w
+            == "2 step(s) did not converge at full size and were cut (2 cut(s) in all), the \
+                first at step 100 (t = 1.000000e-1 s); a smaller time_step avoids the cuts"),
+        "{:?}",
+        warnings(&out)
+    );
+}
+
+/// A block resting on the floor with a penalty a million times too soft sinks into it.
+#[test]
+fn deep_penetration_is_a_warning() {
+    let dir = tempdir();
+    let (_scenes, file) = scene(&BLOCK.replace("min = [0.0, 0.1]", "min = [0.0, 0.0]"));
+    let out = dir.path().join("out");
+    let o = run_in(
+        dir.path(),
+        &[
+            "run",
+            file.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+            "--set",
+            "contact.penalty=1e3",
+            "--set",
+            "simulation.end_time=0.3",
+        ],
+    );
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    assert_eq!(
+        warnings(&out),
+        [
+            "penetration beyond 2.667e-2 m (a tenth of the mean boundary facet) from step 75 (t = \
+          7.500000e-2 s), 6.676e-2 m at most; a larger penalty or a smaller time_step keeps the \
+          bodies apart"
+        ]
+    );
+}
