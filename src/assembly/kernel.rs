@@ -3,7 +3,7 @@
 use nalgebra::{SMatrix, SVector};
 
 use super::{for_lower_pairs, BodyIntegration, KernelFields, MAX_DOFS};
-use crate::dim::{Dim, SpatialDim, Voigt};
+use crate::dim::{Dim, Kinematics, SpatialDim, Voigt};
 use crate::element::{ElementKind, MAX_NODES};
 use crate::material::PointKinematics;
 
@@ -125,8 +125,12 @@ pub(super) fn cell_kernel<const D: usize>(
         point.end_increment = end_increment;
     }
     // B-bar: the volumetric part of every strain operator replaced by its cell average, for
-    // laws that need it on the elements whose full integration locks (Quad4, Hex8).
-    if body.law.volumetric_average() && matches!(kind, ElementKind::Quad4 | ElementKind::Hex8) {
+    // laws that need it on the elements whose full integration locks (Quad4, Hex8). Not in
+    // plane stress, where the thickness strain is free and nothing locks.
+    if body.law.volumetric_average()
+        && body.kinematics != Kinematics::PlaneStress
+        && matches!(kind, ElementKind::Quad4 | ElementKind::Hex8)
+    {
         average_volumetric::<D>(&mut points[..rule.len()], n);
     }
     // Pass 2: the law and the integrals.
