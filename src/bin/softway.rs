@@ -98,17 +98,8 @@ fn main() -> ExitCode {
             quiet,
             checkpoint_every,
         } => {
-            #[cfg(not(feature = "rerun"))]
-            if rerun.is_some() {
-                return invalid(&Error::NotAvailable {
-                    feature: "--rerun".into(),
-                    detail: "this softway was built without the `rerun` cargo feature; \
-                             rebuild with `--features rerun` or run without it"
-                        .into(),
-                });
-            }
-            if checkpoint_every == Some(0) {
-                return invalid(&zero_checkpoints());
+            if let Some(code) = refused_flags(rerun.as_deref(), checkpoint_every) {
+                return code;
             }
             let loaded = match scene::load(&scene, &set) {
                 Ok(l) => l,
@@ -154,17 +145,8 @@ fn main() -> ExitCode {
             quiet,
             checkpoint_every,
         } => {
-            #[cfg(not(feature = "rerun"))]
-            if rerun.is_some() {
-                return invalid(&Error::NotAvailable {
-                    feature: "--rerun".into(),
-                    detail: "this softway was built without the `rerun` cargo feature; \
-                             rebuild with `--features rerun` or run without it"
-                        .into(),
-                });
-            }
-            if checkpoint_every == Some(0) {
-                return invalid(&zero_checkpoints());
+            if let Some(code) = refused_flags(rerun.as_deref(), checkpoint_every) {
+                return code;
             }
             let ckpt = match checkpoint::read(&file) {
                 Ok(c) => c,
@@ -348,6 +330,23 @@ fn friction_text(law: &FrictionLaw) -> String {
             regularization
         ),
     }
+}
+
+/// Flags this build or the contract refuses: `--rerun` without the `rerun` feature,
+/// `--checkpoint-every 0`.
+fn refused_flags(rerun: Option<&Path>, checkpoint_every: Option<usize>) -> Option<ExitCode> {
+    #[cfg(not(feature = "rerun"))]
+    if rerun.is_some() {
+        return Some(invalid(&Error::NotAvailable {
+            feature: "--rerun".into(),
+            detail: "this softway was built without the `rerun` cargo feature; rebuild with \
+                     `--features rerun` or run without it"
+                .into(),
+        }));
+    }
+    #[cfg(feature = "rerun")]
+    let _ = rerun;
+    (checkpoint_every == Some(0)).then(|| invalid(&zero_checkpoints()))
 }
 
 /// Up front: a file where the output folder should be is invalid input, not a failed run.

@@ -12,6 +12,21 @@ use serde_json::Value;
 use super::support::*;
 
 /// A block above a polyline floor (drawn right to left: solid below).
+/// [`BLOCK`] in 3D, with its mesh and obstacle replaced (TOML inline tables).
+fn block_3d(mesh: &str, obstacle: &str) -> String {
+    BLOCK
+        .replace("dimension = 2", "dimension = 3")
+        .replace("gravity = [0.0, -9.81]", "")
+        .replace(
+            r#"{ generator = "rectangle", min = [0.0, 0.1], max = [1.0, 0.6], cells = [4, 2], element = "quad4" }"#,
+            mesh,
+        )
+        .replace(
+            r#"{ type = "polyline", vertices = [[4.0, 0.0], [-4.0, 0.0]], indices = [[0, 1]] }"#,
+            obstacle,
+        )
+}
+
 const BLOCK: &str = r#"[simulation]
 dimension = 2
 time_step = 1.0e-3
@@ -178,18 +193,10 @@ fn time_step_1e_300_is_refused_with_the_step_estimate() {
 #[test]
 fn generator_just_under_the_cell_cap_is_refused_with_a_memory_estimate() {
     let dir = tempdir();
-    let (_scenes, file) = scene(&BLOCK
-            .replace("dimension = 2", "dimension = 3")
-            .replace("gravity = [0.0, -9.81]", "")
-            .replace(
-                r#"{ generator = "rectangle", min = [0.0, 0.1], max = [1.0, 0.6], cells = [4, 2], element = "quad4" }"#,
-                r#"{ generator = "box", min = [0.0, 0.0, 0.0], max = [1.0, 1.0, 1.0], cells = [464, 464, 464], element = "hex8" }"#,
-            )
-            .replace(
-                r#"{ type = "polyline", vertices = [[4.0, 0.0], [-4.0, 0.0]], indices = [[0, 1]] }"#,
-                r#"{ type = "halfspace", point = [0.0, 0.0, 0.0], normal = [0.0, 1.0, 0.0] }"#,
-            ),
-    );
+    let (_scenes, file) = scene(&block_3d(
+        r#"{ generator = "box", min = [0.0, 0.0, 0.0], max = [1.0, 1.0, 1.0], cells = [464, 464, 464], element = "hex8" }"#,
+        r#"{ type = "halfspace", point = [0.0, 0.0, 0.0], normal = [0.0, 1.0, 0.0] }"#,
+    ));
     let err = assert_invalid(dir.path(), &["check", file.to_str().unwrap()]);
     let expected = format!(
         "error: {}: line 13: `bodies.0.mesh.cells`: found [464, 464, 464]: 1.0e8 nodes, 3.0e8 \
@@ -251,18 +258,10 @@ fn zero_length_segment_is_refused() {
 #[test]
 fn zero_area_facet_is_refused() {
     let dir = tempdir();
-    let (_scenes, file) = scene(&BLOCK
-            .replace("dimension = 2", "dimension = 3")
-            .replace("gravity = [0.0, -9.81]", "")
-            .replace(
-                r#"{ generator = "rectangle", min = [0.0, 0.1], max = [1.0, 0.6], cells = [4, 2], element = "quad4" }"#,
-                r#"{ generator = "box", min = [0.0, 0.1, 0.0], max = [1.0, 0.6, 1.0], cells = [2, 2, 2], element = "hex8" }"#,
-            )
-            .replace(
-                r#"{ type = "polyline", vertices = [[4.0, 0.0], [-4.0, 0.0]], indices = [[0, 1]] }"#,
-                r#"{ type = "trimesh", vertices = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [2.0, 0.0, 0.0]], indices = [[0, 1, 2]] }"#,
-            ),
-    );
+    let (_scenes, file) = scene(&block_3d(
+        r#"{ generator = "box", min = [0.0, 0.1, 0.0], max = [1.0, 0.6, 1.0], cells = [2, 2, 2], element = "hex8" }"#,
+        r#"{ type = "trimesh", vertices = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [2.0, 0.0, 0.0]], indices = [[0, 1, 2]] }"#,
+    ));
     let err = assert_invalid(dir.path(), &["check", file.to_str().unwrap()]);
     assert_eq!(
         err.trim_end(),
