@@ -13,6 +13,7 @@ use faer::sparse::SparseColMat;
 use nalgebra::SVector;
 use serde::{Deserialize, Serialize};
 
+mod cell_fields;
 mod contact_terms;
 mod damping;
 mod linear_solve;
@@ -864,32 +865,6 @@ where
     /// Energy at t = 0 [J].
     pub fn initial_energy(&self) -> f64 {
         self.state.reference_energy
-    }
-
-    /// The equivalent logarithmic strain of every cell, bodies in order [-]:
-    /// `sqrt(2/3 e : e)`, `e` the deviatoric part of the Hencky strain `ln(F^T F) / 2`,
-    /// averaged over the cell by volume (0 at rest; 1 for a bar stretched incompressibly to
-    /// e = 2.718 times its length). On a proportional path it is the accumulated equivalent
-    /// strain that forming codes plot. Plane kinematics take no out-of-plane stretch,
-    /// axisymmetric ones the hoop stretch; an inverted cell gives NaN.
-    pub fn cell_equivalent_strains(&self) -> Vec<f64> {
-        assembly::cell_equivalent_strains::<D>(
-            &self.table,
-            &self.reference,
-            &self.integration,
-            &self.state.displacement,
-        )
-    }
-
-    /// Average Voigt stress of every cell, bodies in order [Pa].
-    pub fn cell_stresses(&self) -> Vec<crate::dim::Voigt> {
-        assembly::cell_stresses::<D>(
-            &self.table,
-            &self.reference,
-            &self.integration,
-            &self.state.displacement,
-            &self.state.material_history,
-        )
     }
 
     /// Internal forces of displacements `u` (flat, D per node) integrated from the element
