@@ -77,6 +77,10 @@ pub trait SpatialDim<const D: usize>:
     /// The rotation vector of the turn `a` followed by the turn `b` (`log(exp(b) exp(a))`).
     fn compose_turns(a: &[f64], b: &[f64]) -> Vec<f64>;
 
+    /// The shortest turn (a rotation vector, [`SpatialDim::ANGULAR`] components) that takes
+    /// the stored rotation `stored` to the rotation matrix `target`: `log(target stored^T)`.
+    fn turn_between(stored: &[f64], target: &SMatrix<f64, D, D>) -> Vec<f64>;
+
     /// The strain-rate operator of one node: maps the node's velocity to the Voigt strain rate,
     /// given the shape function value `n`, its spatial gradient `grad` and the radius `r`
     /// (used by axisymmetric kinematics only).
@@ -152,6 +156,13 @@ impl SpatialDim<2> for Dim<2> {
 
     fn compose_turns(a: &[f64], b: &[f64]) -> Vec<f64> {
         vec![a[0] + b[0]]
+    }
+
+    fn turn_between(stored: &[f64], target: &Matrix2<f64>) -> Vec<f64> {
+        let difference = target[(1, 0)].atan2(target[(0, 0)]) - stored[0];
+        // Wrapped to (-pi, pi]: the shortest turn.
+        let two_pi = 2.0 * std::f64::consts::PI;
+        vec![difference - two_pi * (difference / two_pi).round()]
     }
 
     fn strain_operator(
@@ -258,6 +269,14 @@ impl SpatialDim<3> for Dim<3> {
         let (a, b) = (Vector3::from_column_slice(a), Vector3::from_column_slice(b));
         let r = Rotation3::new(b) * Rotation3::new(a);
         r.scaled_axis().as_slice().to_vec()
+    }
+
+    fn turn_between(stored: &[f64], target: &Matrix3<f64>) -> Vec<f64> {
+        let relative = target * Matrix3::from_column_slice(stored).transpose();
+        Rotation3::from_matrix(&relative)
+            .scaled_axis()
+            .as_slice()
+            .to_vec()
     }
 
     fn strain_operator(

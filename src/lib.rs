@@ -78,8 +78,9 @@ pub mod prelude {
     pub use crate::mesh::Mesh;
     pub use crate::simulation::observe::{NullRecorder, Recorder};
     pub use crate::simulation::{
-        Body, BodyId, Energies, MassKind, Model, Settings, Simulation, Simulation2, Simulation3,
-        SimulationBuilder, State, StepReport,
+        Body, BodyId, ContactEvent, ContactMaster, ContactPoint, Energies, FixedTimestep,
+        FrameReport, MassKind, Model, ObstacleId, Settings, Simulation, Simulation2, Simulation3,
+        SimulationBuilder, State, StepReport, Touching,
     };
     pub use crate::time::{Beta, SpaceTimeScheme};
     pub use crate::FillOrdering;

@@ -158,7 +158,7 @@ fn rolling_ring() {
     let k = (0.05f64.powi(2) + 0.1f64.powi(2)) / (2.0 * 0.01);
     let expected = 9.81 * 20f64.to_radians().sin() / (1.0 + k);
     let travel = mean(&sim, &sim.state().displacement);
-    let turned = sim.body_rotation(softway::prelude::BodyId(0));
+    let turned = sim.body_rotation(sim.body_ids()[0]).unwrap();
     eprintln!(
         "rolling ring: a = {a:.4} against {expected:.4}, turned {turned:.4} rad, travel / R {:.4}",
         travel / 0.1

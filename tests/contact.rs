@@ -102,7 +102,7 @@ where
     let inner = &forces[2..forces.len() - 2];
     let mean_force = inner.iter().sum::<f64>() / inner.len() as f64;
     let momentum: f64 = (0..sim.node_count())
-        .map(|i| sim.velocity(BodyId(0), i).unwrap()[0])
+        .map(|i| sim.velocity(sim.body_ids()[0], i).unwrap()[0])
         .sum::<f64>()
         / sim.node_count() as f64;
     Impact {
@@ -332,7 +332,7 @@ where
     let mean_velocity = |sim: &Simulation<D>, b: usize| -> f64 {
         let n = sim.bodies()[b].mesh.nodes.len();
         (0..n)
-            .map(|i| sim.velocity(BodyId(b), i).unwrap()[0])
+            .map(|i| sim.velocity(sim.body_ids()[b], i).unwrap()[0])
             .sum::<f64>()
             / n as f64
     };
@@ -343,7 +343,7 @@ where
         sim.mass_matrix().dot(&ones, &sim.state().velocity)
     };
     let p0 = momentum(&sim);
-    let scale = sim.body_mass(BodyId(0)) * V0;
+    let scale = sim.body_mass(sim.body_ids()[0]).unwrap() * V0;
     let (mut first, mut last, mut n) = (None, 0, 0);
     while sim.state().time < GAP / (2.0 * V0) + 2.0 * L + 0.5 {
         let r = sim.step().unwrap();
@@ -445,7 +445,7 @@ where
     }
     let n = sim.node_count();
     let vx = (0..n)
-        .map(|i| sim.velocity(BodyId(0), i).unwrap()[0])
+        .map(|i| sim.velocity(sim.body_ids()[0], i).unwrap()[0])
         .sum::<f64>()
         / n as f64;
     (vx, sim)
@@ -497,7 +497,7 @@ where
         0.3,
     );
     let area = if D == 2 { 0.1 } else { 0.1 * 0.05 };
-    let mass = sim.body_mass(BodyId(0));
+    let mass = sim.body_mass(sim.body_ids()[0]).unwrap();
     let exact = G * theta.sin() - limit * area / mass;
     assert!(
         (v / 0.3 - exact).abs() < 0.02 * exact,
@@ -520,7 +520,7 @@ where
     };
     let (v, sim) = incline::<D>(theta, law, 0.3);
     let area = if D == 2 { 0.1 } else { 0.1 * 0.05 };
-    let mass = sim.body_mass(BodyId(0));
+    let mass = sim.body_mass(sim.body_ids()[0]).unwrap();
     let tau = mass / (coefficient * area);
     let v_terminal = G * theta.sin() * tau;
     let exact = v_terminal * (1.0 - (-0.3 / tau).exp());

@@ -202,7 +202,7 @@ fn axisymmetric_mass_is_the_ring_mass() {
         .build()
         .unwrap();
     let expected = 10.0 * 2.0 * std::f64::consts::PI * 2.0 * 4.0;
-    let got = sim.body_mass(BodyId(0));
+    let got = sim.body_mass(sim.body_ids()[0]).unwrap();
     assert!(
         (got - expected).abs() < 1e-10 * expected,
         "{got} vs {expected}"
@@ -236,7 +236,7 @@ where
     }
     let t = sim.state().time;
     for n in 0..sim.node_count() {
-        let u = sim.displacement(BodyId(0), n).unwrap();
+        let u = sim.displacement(sim.body_ids()[0], n).unwrap();
         assert!((u - v * t).norm() < 1e-12 * v.norm() * t);
     }
     let e = sim.energies();
@@ -269,8 +269,8 @@ where
         for n in 1..=20 {
             sim.step().unwrap();
             let nf = n as f64;
-            let u = sim.displacement(BodyId(0), 0).unwrap();
-            let v = sim.velocity(BodyId(0), 0).unwrap();
+            let u = sim.displacement(sim.body_ids()[0], 0).unwrap();
+            let v = sim.velocity(sim.body_ids()[0], 0).unwrap();
             // Exact up to the Newton tolerance (1e-8 relative) accumulated over the steps.
             assert!(
                 (v - g * h * nf).norm() < 1e-7 * g.norm() * h * nf,
@@ -310,7 +310,7 @@ where
         .body(body)
         .build()
         .unwrap();
-    let id = BodyId(0);
+    let id = sim.body_ids()[0];
     let x: Vec<SVector<f64, D>> = sim.bodies()[0].mesh.nodes.clone();
     for (n, p) in x.iter().enumerate() {
         let v = vec_d::<D>([
@@ -465,7 +465,7 @@ fn thick_cylinder_matches_lame() {
     let aa = mu * bb / ((lambda + mu) * b * b);
     for n in 0..sim.node_count() {
         let x = sim.reference_positions()[n];
-        let u = sim.displacement(BodyId(0), n).unwrap();
+        let u = sim.displacement(sim.body_ids()[0], n).unwrap();
         let exact = aa * x.x + bb / x.x;
         assert!(
             (u.x - exact).abs() < 0.01 * u_a,

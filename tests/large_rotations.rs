@@ -194,7 +194,7 @@ where
     let mut crossing = None;
     while crossing.is_none() && sim.state().time < 2.0 * quarter {
         sim.step().unwrap();
-        let angle = sim.body_rotation(BodyId(0));
+        let angle = sim.body_rotation(sim.body_ids()[0]).unwrap();
         let t = sim.state().time;
         if angle >= std::f64::consts::FRAC_PI_2 {
             let target = std::f64::consts::FRAC_PI_2;

@@ -67,7 +67,7 @@ where
             straddling = Some(sim.state().obstacle_velocities.clone());
         }
     }
-    let t = sim.obstacle_translation(0);
+    let t = sim.obstacle_translation(sim.obstacle_ids()[0]).unwrap();
     let expected = vec_d::<D>([0.05 * 0.2, 0.1 * 0.4, 0.0]);
     assert!((t - expected).norm() < 1e-12, "{t:?} vs {expected:?}");
     // The step from 0.18 to 0.21: 0.02 s at (0.05, 0) and 0.01 s at (0, 0.1).
@@ -78,7 +78,7 @@ where
     assert!(sim.state().obstacle_velocities.iter().all(|v| *v == 0.0));
     // A scheduled obstacle's velocity is not the host's to set.
     assert!(sim
-        .set_obstacle_velocity(0, vec_d([1.0, 0.0, 0.0]))
+        .set_obstacle_velocity(sim.obstacle_ids()[0], vec_d([1.0, 0.0, 0.0]))
         .is_err());
 }
 
@@ -155,7 +155,9 @@ where
         last = Some(sim.step().unwrap());
     }
     let report = last.unwrap();
-    assert!((sim.obstacle_translation(1)[D - 1] + 0.002).abs() < 1e-12);
+    assert!(
+        (sim.obstacle_translation(sim.obstacle_ids()[1]).unwrap()[D - 1] + 0.002).abs() < 1e-12
+    );
     // The block is squeezed between floor and plate by about 1 mm of 0.1 m: forces along the
     // axis of about E A (1 mm / 0.1 m) (plane strain stiffens it by 1/(1 - nu^2); within a
     // factor 2 of E A strain).

@@ -10,7 +10,7 @@ use softway::contact::{Obstacle, ObstacleShape};
 use softway::prelude::*;
 use softway::recording::rerun::{EntityRows, MemoryRecording, ENERGY_KINDS};
 use softway::recording::{ColorField, ContactRecord, IterationInfo, RerunRecorder};
-use softway::simulation::{BodyId, StepReport};
+use softway::simulation::StepReport;
 
 fn steel() -> Material {
     Material::LinearElastic(LinearElastic::new(210e9, 0.3, 7800.0).unwrap())
@@ -82,7 +82,7 @@ where
     Dim<D>: SpatialDim<D>,
 {
     let (recorder, memory) = RerunRecorder::<D>::to_memory().unwrap();
-    let mut recorder = recorder.with_probe("tip", BodyId(0), 1);
+    let mut recorder = recorder.with_probe("tip", sim.body_ids()[0], 1);
     let reports = run(&mut sim, steps, &mut recorder);
     let iterations: usize = reports.iter().map(|r| r.iterations).sum();
     assert!(iterations >= steps, "{iterations} iterations");

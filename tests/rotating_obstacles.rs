@@ -78,7 +78,7 @@ where
         .collect();
     let m = sim.mass_matrix();
     let (mx, mv) = (m.mul(&positions), m.mul(&sim.state().velocity));
-    let mass = sim.body_mass(softway::simulation::BodyId(0));
+    let mass = sim.body_mass(sim.body_ids()[0]).unwrap();
     let sum = |v: &[f64]| {
         SVector::<f64, D>::from_fn(|k, _| v.iter().skip(k).step_by(D).sum::<f64>() / mass)
     };
@@ -130,7 +130,10 @@ where
         let t0 = sim.state().time;
         sim.step().unwrap();
         if t0 < 0.2 && sim.state().time > 0.2 {
-            straddling = Some(sim.obstacle_angular_velocity(0));
+            straddling = Some(
+                sim.obstacle_angular_velocity(sim.obstacle_ids()[0])
+                    .unwrap(),
+            );
         }
         if sim.state().step == 10 {
             rebuilt =
@@ -138,17 +141,21 @@ where
         }
     }
     let expected = rotation::<D>(&scale(&w2, 0.3)) * rotation::<D>(&scale(&w1, 0.2));
-    let r = sim.obstacle_rotation(0);
+    let r = sim.obstacle_rotation(sim.obstacle_ids()[0]).unwrap();
     assert!((r - expected).amax() < 1e-12, "{r} vs {expected}");
     let t = vec_d::<D>([0.1 * 0.2, 0.2 * 0.3, 0.0]);
-    assert!((sim.obstacle_translation(0) - t).norm() < 1e-12);
-    assert!((sim.obstacle_pivot(0) - (pivot + t)).norm() < 1e-12);
+    assert!((sim.obstacle_translation(sim.obstacle_ids()[0]).unwrap() - t).norm() < 1e-12);
+    assert!((sim.obstacle_pivot(sim.obstacle_ids()[0]).unwrap() - (pivot + t)).norm() < 1e-12);
     // The step from 0.18 to 0.21 turns by exp(0.01 w2) exp(0.02 w1).
     let w = straddling.expect("a step across t = 0.2");
     let across = rotation::<D>(&scale(&w2, 0.01)) * rotation::<D>(&scale(&w1, 0.02));
     assert!((rotation::<D>(&scale(&w, 0.03)) - across).amax() < 1e-12);
     // Stopped after the last piece.
-    assert!(sim.obstacle_angular_velocity(0).iter().all(|w| *w == 0.0));
+    assert!(sim
+        .obstacle_angular_velocity(sim.obstacle_ids()[0])
+        .unwrap()
+        .iter()
+        .all(|w| *w == 0.0));
     // The ball's centre where the pose puts it: pivot + T + R (c - pivot).
     let posed = &sim.posed_obstacles()[0];
     let c = pivot + t + expected * (centre - pivot);
@@ -164,7 +171,9 @@ where
     }
     assert_eq!(rebuilt.state(), sim.state());
     // A scheduled obstacle's angular velocity is not the host's to set.
-    assert!(sim.set_obstacle_angular_velocity(0, &w1).is_err());
+    assert!(sim
+        .set_obstacle_angular_velocity(sim.obstacle_ids()[0], &w1)
+        .is_err());
 }
 
 #[test]
@@ -195,7 +204,7 @@ fn the_2d_angle_is_the_sum_of_the_turns() {
     while sim.state().time < 0.6 {
         sim.step().unwrap();
     }
-    let angle = sim.obstacle_angle(0);
+    let angle = sim.obstacle_angle(sim.obstacle_ids()[0]).unwrap();
     assert!((angle - (0.5 - 0.125)).abs() < 1e-13, "{angle}");
     // A host-driven obstacle turns at the angular velocity it is given.
     let mut sim = Simulation2::builder()
@@ -220,13 +229,18 @@ fn the_2d_angle_is_the_sum_of_the_turns() {
     for _ in 0..10 {
         sim.step().unwrap();
     }
-    sim.set_obstacle_angular_velocity(0, &[-0.1]).unwrap();
+    sim.set_obstacle_angular_velocity(sim.obstacle_ids()[0], &[-0.1])
+        .unwrap();
     for _ in 0..10 {
         sim.step().unwrap();
     }
-    assert!((sim.obstacle_angle(0) - 0.02).abs() < 1e-14);
-    assert!(sim.set_obstacle_angular_velocity(0, &[f64::NAN]).is_err());
-    assert!(sim.set_obstacle_angular_velocity(0, &[0.1, 0.2]).is_err());
+    assert!((sim.obstacle_angle(sim.obstacle_ids()[0]).unwrap() - 0.02).abs() < 1e-14);
+    assert!(sim
+        .set_obstacle_angular_velocity(sim.obstacle_ids()[0], &[f64::NAN])
+        .is_err());
+    assert!(sim
+        .set_obstacle_angular_velocity(sim.obstacle_ids()[0], &[0.1, 0.2])
+        .is_err());
 }
 
 /// Probes (nodes of a tiny body) against obstacles posed at `t0` and `t1`, with a margin.
@@ -851,7 +865,7 @@ mod scene_files {
             sim.step().unwrap();
         }
         let expected = rotation::<3>(&[0.0, -0.25 * 0.01, 0.0]);
-        assert!((sim.obstacle_rotation(0) - expected).amax() < 1e-15);
+        assert!((sim.obstacle_rotation(sim.obstacle_ids()[0]).unwrap() - expected).amax() < 1e-15);
     }
 
     #[test]

@@ -209,7 +209,7 @@ impl BodyIntegration {
     }
 
     /// History values of one cell of `kind`.
-    fn history_per_cell(&self, kind: ElementKind) -> usize {
+    pub(crate) fn history_per_cell(&self, kind: ElementKind) -> usize {
         kind.quadrature().len() * self.law.history_len()
     }
 }

@@ -16,6 +16,7 @@ use softway::io::checkpoint::{self, AnyCheckpoint, Checkpoint};
 use softway::io::output::{self, Progress, RunOptions};
 use softway::io::scene::plain;
 use softway::io::scene::{self, LoadedScene};
+use softway::simulation::BodyId;
 use softway::Error;
 
 #[cfg(unix)]
@@ -245,7 +246,7 @@ where
             body.name,
             body.mesh.node_count(),
             body.mesh.cell_count(),
-            sim.body_mass(softway::simulation::BodyId(b)),
+            sim.body_mass(BodyId::initial(b)).unwrap_or(f64::NAN),
             if per_thickness {
                 "kg/m (per metre of thickness)"
             } else {
@@ -607,13 +608,12 @@ where
     #[cfg(feature = "rerun")]
     fn new(scene: &softway::io::scene::Scene<D>, path: Option<&Path>) -> Result<Self, Error> {
         use softway::recording::RerunRecorder;
-        use softway::simulation::BodyId;
         let rerun = match path {
             None => None,
             Some(path) => {
                 let mut r = RerunRecorder::<D>::to_file(path)?.with_obstacles(&scene.obstacles);
                 for p in &scene.probes {
-                    r = r.with_probe(p.name.clone(), BodyId(p.body), p.node);
+                    r = r.with_probe(p.name.clone(), BodyId::initial(p.body), p.node);
                 }
                 Some(r)
             }

@@ -19,7 +19,7 @@ use crate::dim::{Dim, SpatialDim};
 use crate::element::ElementKind;
 use crate::error::{Error, Result};
 use crate::recording::Recorder;
-use crate::simulation::{BodyId, RunMonitor, Simulation, StepReport};
+use crate::simulation::{RunMonitor, Simulation, StepReport};
 
 /// `summary.json`.
 #[derive(Debug, Clone, Serialize, PartialEq)]
@@ -201,12 +201,13 @@ where
             row.push(number(report.map_or(0.0, |r| r.reactions[b][k])));
         }
     }
+    let ids = sim.body_ids();
     for p in &scene.probes {
         let u = sim
-            .displacement(BodyId(p.body), p.node)
+            .displacement(ids[p.body], p.node)
             .unwrap_or_else(|_| SVector::zeros());
         let v = sim
-            .velocity(BodyId(p.body), p.node)
+            .velocity(ids[p.body], p.node)
             .unwrap_or_else(|_| SVector::zeros());
         row.extend(u.iter().map(|x| number(*x)));
         row.extend(v.iter().map(|x| number(*x)));
@@ -237,8 +238,7 @@ where
     let mut cell_offset = 0;
     let mut files = Vec::new();
     for (b, body) in sim.bodies().iter().enumerate() {
-        let id = BodyId(b);
-        let range = sim.body_nodes(id);
+        let range = sim.nodes_of(b);
         let points: Vec<[f64; 3]> = body.mesh.nodes.iter().map(<Dim<D>>::to_3d).collect();
         let mut displacement = Vec::with_capacity(points.len() * 3);
         let mut velocity = Vec::with_capacity(points.len() * 3);
@@ -662,7 +662,9 @@ where
         if interval == 0.0 || now - carried.last_history >= interval * (1.0 - 1e-9) || last {
             carried.last_history = now;
             for (body, angle) in sim.small_strain_rotations() {
-                carried.turned[body.0] = carried.turned[body.0].max(angle);
+                if let Ok(b) = sim.body_index(body) {
+                    carried.turned[b] = carried.turned[b].max(angle);
+                }
             }
             if let Err(e) = history.row(&history_row(&sim, scene, Some(&report))) {
                 error = Some(e);

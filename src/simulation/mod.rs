@@ -15,7 +15,11 @@ use serde::{Deserialize, Serialize};
 
 mod cell_fields;
 mod contact_terms;
+mod contacts;
 mod damping;
+mod edit;
+mod fixed_timestep;
+mod handles;
 mod linear_solve;
 pub mod model;
 mod monitor;
@@ -27,6 +31,9 @@ pub mod state;
 mod step;
 mod symmetric_matrix;
 
+pub use contacts::{ContactEvent, ContactMaster, ContactPoint, Touching};
+pub use fixed_timestep::{FixedTimestep, FrameReport};
+pub use handles::{BodyId, ObstacleId, Slots};
 pub use model::{Body, Constraint, MassKind, Model, RayleighDamping, Settings};
 pub use monitor::{energy_created, Overlap, RunMonitor, ENERGY_FAILURE, ENERGY_WARNING};
 pub use rotation::SMALL_STRAIN_ROTATION_LIMIT;
@@ -40,10 +47,6 @@ use crate::error::{Error, Result};
 use crate::mesh::Mesh;
 use crate::solver::FillOrdering;
 use crate::time::{Beta, SpaceTimeScheme};
-
-/// Handle of a body in a simulation.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
-pub struct BodyId(pub usize);
 
 /// Energies and works of the whole system [J] (per unit thickness in plane kinematics, over the
 /// whole revolution in axisymmetric ones).
@@ -123,6 +126,8 @@ where
     /// Whether internal forces and the tangent are assembled every Newton iteration (a law
     /// that is not linear; tests switch it on for linear ones to compare the two paths).
     general_path: bool,
+    /// The last step's contacts, for the host's queries (an output, not state).
+    contact_log: contacts::ContactLog<D>,
     caches: Caches<D>,
 }
 
@@ -259,7 +264,12 @@ where
 
     /// Validates everything and assembles the matrices.
     pub fn build(self) -> Result<Simulation<D>> {
-        Simulation::with_contact(self.settings, self.bodies, self.obstacles, self.contact)
+        Simulation::from_model(Model {
+            settings: self.settings,
+            bodies: self.bodies,
+            obstacles: self.obstacles,
+            contact: self.contact,
+        })
     }
 }
 
@@ -280,29 +290,9 @@ where
         SimulationBuilder::new()
     }
 
-    /// Validates the settings and bodies, assembles the matrices and sets the initial state
-    /// (no obstacle; bodies do not touch each other unless [`Simulation::with_contact`] is used).
-    pub fn new(settings: Settings<D>, bodies: Vec<Body<D>>) -> Result<Self> {
-        Self::with_contact(settings, bodies, Vec::new(), ContactSettings::default())
-    }
-
-    /// Like [`Simulation::new`], with rigid obstacles and contact settings. Every pair of
-    /// bodies, and every body with every obstacle, may touch.
-    pub fn with_contact(
-        settings: Settings<D>,
-        bodies: Vec<Body<D>>,
-        obstacles: Vec<Obstacle<D>>,
-        contact: ContactSettings,
-    ) -> Result<Self> {
-        Self::from_model(Model {
-            settings,
-            bodies,
-            obstacles,
-            contact,
-        })
-    }
-
-    /// Validates a model, assembles its matrices and sets the initial state.
+    /// Validates a model, assembles its matrices and sets the initial state: what
+    /// [`SimulationBuilder::build`] does, for a model held as a value (a deserialised one).
+    /// Every pair of bodies, and every body with every obstacle, may touch.
     pub fn from_model(model: Model<D>) -> Result<Self> {
         let Model {
             settings,
@@ -326,6 +316,13 @@ where
             body.mesh.check_quality(&body.name)?;
             body.material.validate()?;
             damping::validate(&body.name, &body.damping)?;
+            if !body.gravity_scale.is_finite() {
+                return Err(invalid(
+                    &format!("body `{}` gravity_scale", body.name),
+                    body.gravity_scale,
+                    "a finite factor",
+                ));
+            }
             if body.initial_angular_velocity.len() != <Dim<D>>::ANGULAR {
                 return Err(invalid(
                     "initial_angular_velocity",
@@ -411,15 +408,7 @@ where
             }
         }
 
-        // Gravity as consistent nodal forces: M g.
-        let mut g_field = vec![0.0; ndof];
-        for n in 0..nodes {
-            for k in 0..D {
-                g_field[n * D + k] = settings.gravity[k];
-            }
-        }
-        let mut gravity_force = vec![0.0; ndof];
-        assembly::symmetric_mul_add(&matrices.mass, &g_field, 1.0, &mut gravity_force);
+        let gravity_force = gravity_forces(settings, bodies, &node_offsets, &matrices.mass);
 
         let mut velocity = vec![0.0; ndof];
         for (b, body) in bodies.iter().enumerate() {
@@ -527,6 +516,8 @@ where
             reference_energy: 0.0,
             material_history: vec![0.0; assembly::history_len(&table, &integration)],
             contact_memory: ContactMemory::default(),
+            body_slots: Slots::identity(bodies.len()),
+            obstacle_slots: Slots::identity(obstacles.len()),
         };
         let general_path = integration.iter().any(|b| !b.law.is_linear());
         // Updated-Lagrangian bodies take their stiffness part in the element kernel.
@@ -559,6 +550,7 @@ where
             nodal_mass,
             damping,
             general_path,
+            contact_log: Default::default(),
             caches: Caches {
                 system: None,
                 contact_factors: Vec::new(),
@@ -575,6 +567,14 @@ where
         let mut sim = Self::from_model(model)?;
         sim.set_state(state)?;
         Ok(sim)
+    }
+
+    /// An independent copy that continues bit for bit like this one (a snapshot to branch
+    /// from: the model and state copied, the matrices rebuilt, the caches left to refill).
+    pub fn try_clone(&self) -> Result<Self> {
+        let mut copy = Self::from_parts(self.model.clone(), self.state.clone())?;
+        copy.warnings.clone_from(&self.warnings);
+        Ok(copy)
     }
 
     /// Replaces the state (for example one returned by [`Simulation::state`] earlier): the
@@ -607,6 +607,29 @@ where
         }
         let mut state = state;
         self.check_obstacle_state(&mut state)?;
+        if state.body_slots.is_empty() {
+            state.body_slots = Slots::identity(self.model.bodies.len());
+        }
+        if state.obstacle_slots.is_empty() {
+            state.obstacle_slots = Slots::identity(self.model.obstacles.len());
+        }
+        if state.body_slots.len() != self.model.bodies.len()
+            || state.obstacle_slots.len() != self.model.obstacles.len()
+        {
+            return Err(invalid(
+                "state.body_slots",
+                format!(
+                    "{} bodies and {} obstacles",
+                    state.body_slots.len(),
+                    state.obstacle_slots.len()
+                ),
+                &format!(
+                    "{} bodies and {} obstacles (the model's)",
+                    self.model.bodies.len(),
+                    self.model.obstacles.len()
+                ),
+            ));
+        }
         if state.gap_displacement.is_empty() {
             // A state from before the gap displacement existed: the configuration's.
             state.gap_displacement = state.displacement.clone();
@@ -618,6 +641,7 @@ where
             ));
         }
         self.state = state;
+        self.contact_log.clear();
         Ok(())
     }
 
@@ -647,15 +671,6 @@ where
         &self.model.bodies
     }
 
-    /// The handle of the body called `name`.
-    pub fn body_id(&self, name: &str) -> Option<BodyId> {
-        self.model
-            .bodies
-            .iter()
-            .position(|b| b.name == name)
-            .map(BodyId)
-    }
-
     /// The state (time, displacements, velocities, works).
     pub fn state(&self) -> &State {
         &self.state
@@ -671,109 +686,9 @@ where
         self.reference.len()
     }
 
-    /// The global index of a body's node.
-    pub fn global_node(&self, body: BodyId, node: usize) -> Result<usize> {
-        let b = self.model.bodies.get(body.0).ok_or_else(|| {
-            Error::InvalidHandle(format!("body {} of {}", body.0, self.model.bodies.len()))
-        })?;
-        if node >= b.mesh.nodes.len() {
-            return Err(Error::InvalidHandle(format!(
-                "node {node} of body `{}` ({} nodes)",
-                b.name,
-                b.mesh.nodes.len()
-            )));
-        }
-        Ok(self.node_offsets[body.0] + node)
-    }
-
-    /// Range of global nodes of a body.
-    pub fn body_nodes(&self, body: BodyId) -> std::ops::Range<usize> {
-        let start = self.node_offsets[body.0];
-        start..start + self.model.bodies[body.0].mesh.nodes.len()
-    }
-
-    fn node_vector(values: &[f64], node: usize) -> SVector<f64, D> {
-        SVector::from_column_slice(&values[node * D..node * D + D])
-    }
-
-    /// Displacement of a node [m].
-    pub fn displacement(&self, body: BodyId, node: usize) -> Result<SVector<f64, D>> {
-        Ok(Self::node_vector(
-            &self.state.displacement,
-            self.global_node(body, node)?,
-        ))
-    }
-
-    /// Velocity of a node [m/s].
-    pub fn velocity(&self, body: BodyId, node: usize) -> Result<SVector<f64, D>> {
-        Ok(Self::node_vector(
-            &self.state.velocity,
-            self.global_node(body, node)?,
-        ))
-    }
-
-    /// Current position of a node [m].
-    pub fn position(&self, body: BodyId, node: usize) -> Result<SVector<f64, D>> {
-        let g = self.global_node(body, node)?;
-        Ok(self.reference[g] + Self::node_vector(&self.state.displacement, g))
-    }
-
-    /// Current positions of all nodes [m].
-    pub fn positions(&self) -> Vec<SVector<f64, D>> {
-        (0..self.reference.len())
-            .map(|g| self.reference[g] + Self::node_vector(&self.state.displacement, g))
-            .collect()
-    }
-
-    /// Sets a node's velocity [m/s] (prescribed components keep their prescribed value).
-    pub fn set_velocity(&mut self, body: BodyId, node: usize, v: SVector<f64, D>) -> Result<()> {
-        let g = self.global_node(body, node)?;
-        for k in 0..D {
-            let dof = g * D + k;
-            self.state.velocity[dof] = self.prescribed[dof].unwrap_or(v[k]);
-        }
-        if self.state.step == 0 {
-            self.state.reference_energy = self.energies().total();
-        }
-        Ok(())
-    }
-
-    /// Sets a constant external force on a node [N] (per unit thickness in plane kinematics,
-    /// the total over the revolution in axisymmetric ones); it stays until changed.
-    pub fn set_nodal_force(&mut self, body: BodyId, node: usize, f: SVector<f64, D>) -> Result<()> {
-        let g = self.global_node(body, node)?;
-        self.state.loads[g * D..g * D + D].copy_from_slice(f.as_slice());
-        Ok(())
-    }
-
     /// The rigid obstacles, at their pose at t = 0 (see [`Simulation::posed_obstacles`]).
     pub fn obstacles(&self) -> &[Obstacle<D>] {
         &self.model.obstacles
-    }
-
-    /// Current position of obstacle `k`: its displacement since t = 0 [m].
-    pub fn obstacle_translation(&self, k: usize) -> SVector<f64, D> {
-        SVector::from_column_slice(&self.state.obstacle_translations[k * D..k * D + D])
-    }
-
-    /// Sets the velocity of obstacle `k` [m/s] from the next step on (kinematic obstacles
-    /// driven by a host).
-    pub fn set_obstacle_velocity(&mut self, k: usize, v: SVector<f64, D>) -> Result<()> {
-        if k >= self.model.obstacles.len() {
-            return Err(Error::InvalidHandle(format!(
-                "obstacle {k} of {}",
-                self.model.obstacles.len()
-            )));
-        }
-        if !self.model.obstacles[k].motion.is_empty() {
-            return Err(invalid(
-                &format!("obstacle `{}` velocity", self.model.obstacles[k].name),
-                "a motion schedule",
-                "an obstacle without a motion schedule (its schedule sets its velocity)",
-            ));
-        }
-        self.state.obstacle_velocities[k * D..k * D + D].copy_from_slice(v.as_slice());
-        Ok(())
     }
 
     /// The contact settings.
@@ -795,16 +710,6 @@ where
     /// The stiffness matrix on the reference configuration [N/m].
     pub fn stiffness_matrix(&self) -> SymmetricMatrix<'_> {
         SymmetricMatrix::of(&self.matrices.stiffness)
-    }
-
-    /// Total mass of a body [kg].
-    pub fn body_mass(&self, body: BodyId) -> f64 {
-        let range = self.body_nodes(body);
-        let mut e = vec![0.0; self.reference.len() * D];
-        for n in range {
-            e[n * D] = 1.0;
-        }
-        assembly::symmetric_dot(&self.matrices.mass, &e, &e)
     }
 
     /// Energies at the current state.
@@ -838,7 +743,7 @@ where
         let centred = |u: &[f64]| {
             let mut w = u.to_vec();
             for body in 0..self.model.bodies.len() {
-                let range = self.body_nodes(BodyId(body));
+                let range = self.nodes_of(body);
                 let count = range.len().max(1) as f64;
                 let updated = self.integration[body].law.updated_lagrangian();
                 for k in 0..D {
@@ -952,6 +857,30 @@ where
         ));
     }
     Ok(())
+}
+
+/// Gravity as consistent nodal forces: `M g`, g scaled per body.
+fn gravity_forces<const D: usize>(
+    settings: &Settings<D>,
+    bodies: &[Body<D>],
+    node_offsets: &[usize],
+    mass: &SparseColMat<usize, f64>,
+) -> Vec<f64>
+where
+    Dim<D>: SpatialDim<D>,
+{
+    let ndof = mass.ncols();
+    let mut g_field = vec![0.0; ndof];
+    for (body, &offset) in bodies.iter().zip(node_offsets) {
+        for n in offset..offset + body.mesh.nodes.len() {
+            for k in 0..D {
+                g_field[n * D + k] = body.gravity_scale * settings.gravity[k];
+            }
+        }
+    }
+    let mut force = vec![0.0; ndof];
+    assembly::symmetric_mul_add(mass, &g_field, 1.0, &mut force);
+    force
 }
 
 /// Mass-weighted centre of the nodes `offset..offset + count`.

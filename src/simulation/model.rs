@@ -128,6 +128,13 @@ pub struct Body<const D: usize> {
     /// Rayleigh damping (none by default).
     #[serde(default)]
     pub damping: RayleighDamping,
+    /// The factor on gravity for this body (1: the settings' gravity; 0: none).
+    #[serde(default = "unit_scale")]
+    pub gravity_scale: f64,
+}
+
+fn unit_scale() -> f64 {
+    1.0
 }
 
 impl<const D: usize> Body<D>
@@ -144,7 +151,14 @@ where
             initial_angular_velocity: vec![0.0; <Dim<D>>::ANGULAR],
             constraints: Vec::new(),
             damping: RayleighDamping::NONE,
+            gravity_scale: 1.0,
         }
+    }
+
+    /// Scales gravity on this body (1: the settings' gravity; 0: weightless).
+    pub fn with_gravity_scale(mut self, scale: f64) -> Self {
+        self.gravity_scale = scale;
+        self
     }
 
     /// Sets Rayleigh damping `C = mass * M + stiffness * K` (mass [1/s], stiffness [s]).

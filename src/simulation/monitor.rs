@@ -88,7 +88,7 @@ where
         let Some(template) = self.caches.detector.as_ref() else {
             return Vec::new();
         };
-        // The margin is a quarter of the mean facet (see `Simulation::with_contact`).
+        // The margin is a quarter of the mean facet (see `Simulation::from_model`).
         let tolerance = 4e-6 * template.options().margin;
         let mut found: std::collections::BTreeMap<(usize, OverlapWith), (usize, f64)> =
             Default::default();

@@ -7,31 +7,156 @@
 use nalgebra::{SMatrix, SVector};
 
 use super::state::State;
+use super::ObstacleId;
 use super::{invalid, Simulation};
 use crate::contact::Obstacle;
 use crate::dim::{Dim, SpatialDim};
-use crate::error::{Error, Result};
+use crate::error::Result;
 
 impl<const D: usize> Simulation<D>
 where
     Dim<D>: SpatialDim<D>,
 {
-    /// Rotation of obstacle `k` about its pivot since t = 0.
-    pub fn obstacle_rotation(&self, k: usize) -> SMatrix<f64, D, D> {
+    /// Displacement of an obstacle (of its pivot) since t = 0 (m).
+    pub fn obstacle_translation(&self, obstacle: ObstacleId) -> Result<SVector<f64, D>> {
+        let k = self.obstacle_index(obstacle)?;
+        Ok(self.translation_of(k))
+    }
+
+    fn translation_of(&self, k: usize) -> SVector<f64, D> {
+        SVector::from_column_slice(&self.state.obstacle_translations[k * D..k * D + D])
+    }
+
+    /// Rotation of an obstacle about its pivot since t = 0.
+    pub fn obstacle_rotation(&self, obstacle: ObstacleId) -> Result<SMatrix<f64, D, D>> {
+        let k = self.obstacle_index(obstacle)?;
+        Ok(self.rotation_of(k))
+    }
+
+    fn rotation_of(&self, k: usize) -> SMatrix<f64, D, D> {
         let r = <Dim<D>>::ROTATION;
         <Dim<D>>::rotation_matrix(&self.state.obstacle_rotations[k * r..k * r + r])
     }
 
-    /// Angular velocity of obstacle `k` about its pivot [rad/s] (1 component in 2D, 3 in 3D):
-    /// the last step's, or the one set for the next step.
-    pub fn obstacle_angular_velocity(&self, k: usize) -> Vec<f64> {
-        let a = <Dim<D>>::ANGULAR;
-        self.state.obstacle_angular_velocities[k * a..k * a + a].to_vec()
+    /// Velocity of an obstacle's pivot (m/s): the last step's, or the one set for the next
+    /// step.
+    pub fn obstacle_linear_velocity(&self, obstacle: ObstacleId) -> Result<SVector<f64, D>> {
+        Ok(self.obstacle_velocity(self.obstacle_index(obstacle)?))
     }
 
-    /// Where the pivot of obstacle `k` is now [m] (its pivot at t = 0 plus its translation).
-    pub fn obstacle_pivot(&self, k: usize) -> SVector<f64, D> {
-        self.model.obstacles[k].pivot_point() + self.obstacle_translation(k)
+    /// Angular velocity of an obstacle about its pivot (rad/s; 1 component in 2D, 3 in 3D):
+    /// the last step's, or the one set for the next step.
+    pub fn obstacle_angular_velocity(&self, obstacle: ObstacleId) -> Result<Vec<f64>> {
+        let k = self.obstacle_index(obstacle)?;
+        let a = <Dim<D>>::ANGULAR;
+        Ok(self.state.obstacle_angular_velocities[k * a..k * a + a].to_vec())
+    }
+
+    /// Where the pivot of an obstacle is now (m): its pivot at t = 0 plus its translation.
+    pub fn obstacle_pivot(&self, obstacle: ObstacleId) -> Result<SVector<f64, D>> {
+        let k = self.obstacle_index(obstacle)?;
+        Ok(self.model.obstacles[k].pivot_point() + self.translation_of(k))
+    }
+
+    /// The index of a kinematic obstacle the host may drive (no motion schedule).
+    fn driven_index(&self, obstacle: ObstacleId, what: &str) -> Result<usize> {
+        let k = self.obstacle_index(obstacle)?;
+        let o = &self.model.obstacles[k];
+        if !o.motion.is_empty() {
+            return Err(invalid(
+                &format!("obstacle `{}` {what}", o.name),
+                "a motion schedule",
+                &format!("an obstacle without a motion schedule (its schedule sets its {what})"),
+            ));
+        }
+        Ok(k)
+    }
+
+    /// Sets the velocity of an obstacle's pivot (m/s) from the next step on (kinematic
+    /// obstacles driven by a host).
+    pub fn set_obstacle_velocity(
+        &mut self,
+        obstacle: ObstacleId,
+        v: SVector<f64, D>,
+    ) -> Result<()> {
+        let k = self.driven_index(obstacle, "velocity")?;
+        if v.iter().any(|x| !x.is_finite()) {
+            return Err(invalid(
+                &format!("obstacle `{}` velocity", self.model.obstacles[k].name),
+                format!("{:?}", v.as_slice()),
+                "finite components (m/s)",
+            ));
+        }
+        self.state.obstacle_velocities[k * D..k * D + D].copy_from_slice(v.as_slice());
+        Ok(())
+    }
+
+    /// Sets the angular velocity of an obstacle about its pivot (rad/s; 1 component in 2D,
+    /// 3 in 3D) from the next step on (kinematic obstacles driven by a host).
+    pub fn set_obstacle_angular_velocity(
+        &mut self,
+        obstacle: ObstacleId,
+        omega: &[f64],
+    ) -> Result<()> {
+        let k = self.driven_index(obstacle, "angular velocity")?;
+        let a = <Dim<D>>::ANGULAR;
+        if omega.len() != a || omega.iter().any(|w| !w.is_finite()) {
+            return Err(invalid(
+                &format!(
+                    "obstacle `{}` angular velocity",
+                    self.model.obstacles[k].name
+                ),
+                format!("{omega:?}"),
+                &format!("{a} finite component(s) (rad/s)"),
+            ));
+        }
+        self.state.obstacle_angular_velocities[k * a..k * a + a].copy_from_slice(omega);
+        Ok(())
+    }
+
+    /// Drives a kinematic obstacle to a pose at the end of the next step: its pivot displaced
+    /// by `translation` (m) from t = 0 and turned by `rotation` (a rotation matrix) about
+    /// it. The step moves it there at constant velocity and angular velocity (the shortest
+    /// turn), so contact sees the surface velocity of that motion and the obstacle's work is
+    /// booked. How a host drives a gripper's jaw or a robot's link: call it before every step.
+    pub fn set_obstacle_next_pose(
+        &mut self,
+        obstacle: ObstacleId,
+        translation: SVector<f64, D>,
+        rotation: SMatrix<f64, D, D>,
+    ) -> Result<()> {
+        let k = self.driven_index(obstacle, "pose")?;
+        let name = &self.model.obstacles[k].name;
+        if translation.iter().any(|x| !x.is_finite()) {
+            return Err(invalid(
+                &format!("obstacle `{name}` translation"),
+                format!("{:?}", translation.as_slice()),
+                "finite components (m)",
+            ));
+        }
+        let orthogonality =
+            (rotation.transpose() * rotation - SMatrix::<f64, D, D>::identity()).norm();
+        let det = <Dim<D>>::det(&rotation);
+        if !(orthogonality < 1e-6 && (det - 1.0).abs() < 1e-6) {
+            return Err(invalid(
+                &format!("obstacle `{name}` rotation"),
+                format!("a matrix with |R^T R - I| = {orthogonality:.1e} and det {det:.6}"),
+                "a rotation matrix (orthonormal, determinant 1)",
+            ));
+        }
+        let h = self.model.settings.time_step;
+        let v = (translation - self.translation_of(k)) / h;
+        let (a, r) = (<Dim<D>>::ANGULAR, <Dim<D>>::ROTATION);
+        let turn =
+            <Dim<D>>::turn_between(&self.state.obstacle_rotations[k * r..k * r + r], &rotation);
+        self.state.obstacle_velocities[k * D..k * D + D].copy_from_slice(v.as_slice());
+        for (w, t) in self.state.obstacle_angular_velocities[k * a..k * a + a]
+            .iter_mut()
+            .zip(turn)
+        {
+            *w = t / h;
+        }
+        Ok(())
     }
 
     /// The obstacles in their current pose (`translation` and `rotation` set).
@@ -48,35 +173,6 @@ where
     pub fn obstacles_after(&self, h: f64) -> Vec<Obstacle<D>> {
         let (translations, rotations) = self.obstacle_poses_after(h);
         self.obstacles_at(&translations, &rotations)
-    }
-
-    /// Sets the angular velocity of obstacle `k` about its pivot [rad/s] (1 component in 2D, 3
-    /// in 3D) from the next step on (kinematic obstacles driven by a host).
-    pub fn set_obstacle_angular_velocity(&mut self, k: usize, omega: &[f64]) -> Result<()> {
-        let count = self.model.obstacles.len();
-        let o = self
-            .model
-            .obstacles
-            .get(k)
-            .ok_or_else(|| Error::InvalidHandle(format!("obstacle {k} of {count}")))?;
-        let key = format!("obstacle `{}` angular velocity", o.name);
-        if !o.motion.is_empty() {
-            return Err(invalid(
-                &key,
-                "a motion schedule",
-                "an obstacle without a motion schedule (its schedule sets its angular velocity)",
-            ));
-        }
-        let a = <Dim<D>>::ANGULAR;
-        if omega.len() != a || omega.iter().any(|w| !w.is_finite()) {
-            return Err(invalid(
-                &key,
-                format!("{omega:?}"),
-                &format!("{a} finite component(s) [rad/s]"),
-            ));
-        }
-        self.state.obstacle_angular_velocities[k * a..k * a + a].copy_from_slice(omega);
-        Ok(())
     }
 
     /// Sets the velocity and angular velocity of every scheduled obstacle for a step of size
@@ -226,9 +322,9 @@ where
 }
 
 impl Simulation<2> {
-    /// The angle obstacle `k` has turned about its pivot since t = 0 [rad] (counter-clockwise).
-    pub fn obstacle_angle(&self, k: usize) -> f64 {
-        self.state.obstacle_rotations[k]
+    /// The angle an obstacle has turned about its pivot since t = 0 (rad, counter-clockwise).
+    pub fn obstacle_angle(&self, obstacle: ObstacleId) -> Result<f64> {
+        Ok(self.state.obstacle_rotations[self.obstacle_index(obstacle)?])
     }
 }
 

@@ -6,6 +6,7 @@ use nalgebra::SMatrix;
 
 use super::{BodyId, Simulation};
 use crate::dim::{Dim, SpatialDim};
+use crate::error::Result;
 
 /// The rotation past which a body of a small-strain law is reported [rad] (5 degrees: the
 /// strain a rigid rotation theta fakes is about theta^2 / 2 = 0.4 %).
@@ -17,8 +18,13 @@ where
 {
     /// The angle [rad] of the rotation that best maps the body's reference configuration onto
     /// its current one (the polar factor of `sum (x - x_mean)(X - X_mean)^T`).
-    pub fn body_rotation(&self, body: BodyId) -> f64 {
-        let nodes = self.body_nodes(body);
+    pub fn body_rotation(&self, body: BodyId) -> Result<f64> {
+        Ok(self.rotation_of_body(self.body_index(body)?))
+    }
+
+    /// [`Self::body_rotation`] of the body at position `index` of the model.
+    pub(crate) fn rotation_of_body(&self, index: usize) -> f64 {
+        let nodes = self.nodes_of(index);
         let x = self.positions();
         let count = nodes.len().max(1) as f64;
         let mean = |p: &dyn Fn(usize) -> nalgebra::SVector<f64, D>| {
@@ -57,7 +63,7 @@ where
     pub fn small_strain_rotations(&self) -> Vec<(BodyId, f64)> {
         (0..self.model.bodies.len())
             .filter(|&b| !self.integration[b].law.updated_lagrangian())
-            .map(|b| (BodyId(b), self.body_rotation(BodyId(b))))
+            .map(|b| (self.body_at(b), self.rotation_of_body(b)))
             .filter(|&(_, angle)| angle > SMALL_STRAIN_ROTATION_LIMIT)
             .collect()
     }

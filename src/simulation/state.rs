@@ -5,6 +5,7 @@
 
 use serde::{Deserialize, Serialize};
 
+use super::handles::Slots;
 use crate::contact::ContactKey;
 pub use crate::contact::MasterId;
 
@@ -64,6 +65,13 @@ pub struct State {
     /// Contact memory that changes results: the narrow phase's chosen facets and the contact
     /// factorisations that precondition the linear solves.
     pub contact_memory: ContactMemory,
+    /// The handles of the bodies (slot and generation to position in the model); empty in
+    /// states from before handles (then the model's order).
+    #[serde(default)]
+    pub body_slots: Slots,
+    /// The handles of the obstacles; empty in states from before handles.
+    #[serde(default)]
+    pub obstacle_slots: Slots,
 }
 
 /// The parts of contact resolution that carry over from step to step.

@@ -8,7 +8,7 @@ use nalgebra::SVector;
 
 use super::newton::{Solution, StepStart};
 use super::observe::{NullRecorder, Recorder};
-use super::{end_positions, invalid, BodyId, Simulation, StepReport};
+use super::{end_positions, invalid, Simulation, StepReport};
 use crate::assembly;
 use crate::contact::methods::projection::{project, Applied, ProjectionContext};
 use crate::contact::methods::{self, EndProjection, Method};
@@ -44,10 +44,15 @@ where
             return Err(invalid("time_step", h, "a finite value > 0 [s]"));
         }
         let saved = self.state.clone();
+        let saved_log = self.contact_log.clone();
         match self.advance_cut(h, recorder, 0, true) {
-            Ok(r) => Ok(r),
+            Ok(r) => {
+                self.close_contact_log(&r.contact_forces);
+                Ok(r)
+            }
             Err(e) => {
                 self.state = saved;
+                self.contact_log = saved_log;
                 Err(e)
             }
         }
@@ -379,7 +384,7 @@ where
             work += self.spin_work(h, &start.obstacles_t1, forces);
         }
         for (b, r) in reactions.iter_mut().enumerate() {
-            for n in self.body_nodes(BodyId(b)) {
+            for n in self.nodes_of(b) {
                 for k in 0..D {
                     let dof = n * D + k;
                     if self.prescribed[dof].is_some() {
@@ -482,6 +487,7 @@ where
                 detail,
             });
         }
+        self.log_contacts(&terms.pairs, &terms.forces);
         let report = StepReport {
             step,
             time: t0 + h,

@@ -236,11 +236,11 @@ where
 {
     /// The simulation this scene describes.
     pub fn simulation(&self) -> Result<crate::simulation::Simulation<D>> {
-        crate::simulation::Simulation::with_contact(
-            self.settings.clone(),
-            self.bodies.clone(),
-            self.obstacles.clone(),
-            self.contact.clone(),
-        )
+        crate::simulation::Simulation::from_model(crate::simulation::Model {
+            settings: self.settings.clone(),
+            bodies: self.bodies.clone(),
+            obstacles: self.obstacles.clone(),
+            contact: self.contact.clone(),
+        })
     }
 }

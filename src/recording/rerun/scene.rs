@@ -13,7 +13,7 @@ use super::{ColorField, RerunRecorder};
 use crate::contact::Obstacle;
 use crate::dim::{Dim, SpatialDim};
 use crate::recording::IterationInfo;
-use crate::simulation::{BodyId, Simulation};
+use crate::simulation::Simulation;
 
 /// Drawing data of one body, built once.
 pub(super) struct BodyDraw {
@@ -54,7 +54,7 @@ where
             };
             bodies.push(BodyDraw {
                 name: body.name.clone(),
-                nodes: sim.body_nodes(BodyId(b)),
+                nodes: sim.nodes_of(b),
                 cells: cell_offset..cell_offset + n_cells,
                 cell_nodes,
                 surface_nodes,

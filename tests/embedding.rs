@@ -1,0 +1,335 @@
+//! The embedding API a game or robotics host drives: handles that go stale without panics,
+//! bodies and obstacles added and removed between steps, a kinematic obstacle posed every
+//! step, contact forces per obstacle, per body pair and per node checked against the change of
+//! momentum, contact events, per-body gravity, the fixed-timestep driver, `Send + Sync`.
+
+#[macro_use]
+mod common;
+
+use common::{block, vec_d};
+use nalgebra::{SMatrix, SVector};
+use softway::contact::ObstacleShape;
+use softway::dim::{Dim, SpatialDim};
+use softway::prelude::*;
+
+const G: f64 = 9.81;
+
+fn rubber() -> Material {
+    Material::LinearElastic(LinearElastic::new(1e6, 0.3, 1000.0).unwrap())
+}
+
+/// A 0.1 m block of rubber whose lowest face is at height `bottom`, with light stiffness
+/// damping (a damping ratio of about 0.15 at its first mode) so that it comes to rest.
+fn cube<const D: usize>(name: &str, x: f64, bottom: f64) -> Body<D>
+where
+    Dim<D>: SpatialDim<D>,
+{
+    let mut mesh: Mesh<D> = block([0.1, 0.1, 0.1], [2, 2, 2], false);
+    for p in &mut mesh.nodes {
+        p[0] += x;
+        p[D - 1] += bottom;
+    }
+    Body::new(name, mesh, rubber()).with_damping(0.0, 1e-3)
+}
+
+fn floor<const D: usize>() -> Obstacle<D>
+where
+    Dim<D>: SpatialDim<D>,
+{
+    let mut normal = SVector::zeros();
+    normal[D - 1] = 1.0;
+    Obstacle::new(
+        "floor",
+        ObstacleShape::Halfspace {
+            point: SVector::zeros(),
+            normal,
+        },
+    )
+}
+
+fn gravity<const D: usize>() -> SVector<f64, D> {
+    let mut g = SVector::zeros();
+    g[D - 1] = -G;
+    g
+}
+
+/// A block just above the floor, the soft way, a game's step. (The default, implicit
+/// projection, rattles this soft block on the floor and creates energy: issue 10, measured
+/// in the book's contact chapter.)
+fn scene<const D: usize>() -> Simulation<D>
+where
+    Dim<D>: SpatialDim<D>,
+{
+    Simulation::<D>::builder()
+        .time_step(1.0 / 240.0)
+        .gravity(gravity())
+        .body(cube("a", 0.0, 0.002))
+        .obstacle(floor())
+        .contact(ContactSettings {
+            method: ContactMethod::SoftWay,
+            penalty: 1e9,
+            ..Default::default()
+        })
+        .build()
+        .unwrap()
+}
+
+/// The total momentum of a body (kg m/s): `M v` summed over its nodes.
+fn momentum<const D: usize>(sim: &Simulation<D>, body: BodyId) -> SVector<f64, D>
+where
+    Dim<D>: SpatialDim<D>,
+{
+    let m = sim.mass_matrix();
+    let v = &sim.state().velocity;
+    let mv = m.mul(v);
+    let mut p = SVector::zeros();
+    for n in sim.body_nodes(body).unwrap() {
+        for k in 0..D {
+            p[k] += mv[n * D + k];
+        }
+    }
+    p
+}
+
+fn stale_and_forged_handles_are_errors<const D: usize>()
+where
+    Dim<D>: SpatialDim<D>,
+{
+    let mut sim = scene::<D>();
+    let a = sim.body_id("a").unwrap();
+    let b = sim.add_body(cube("b", 0.3, 0.002)).unwrap();
+    assert_ne!(a, b);
+    assert_eq!(sim.body_ids(), vec![a, b]);
+    sim.remove_body(a).unwrap();
+    for result in [
+        sim.position(a, 0).err(),
+        sim.velocity(a, 0).err(),
+        sim.body_nodes(a).err(),
+        sim.body_mass(a).err(),
+        sim.remove_body(a).err(),
+        sim.set_gravity_scale(a, 0.0).err(),
+        sim.body_positions(BodyId::initial(7)).err(),
+    ] {
+        let e = result.expect("a stale or forged handle is refused");
+        assert!(matches!(e, Error::InvalidHandle(_)), "{e}");
+    }
+    // The slot of `a` is reused with a new generation: the old handle stays stale.
+    let c = sim.add_body(cube("c", 0.6, 0.002)).unwrap();
+    assert!(sim.position(a, 0).is_err());
+    assert!(sim.position(c, 0).is_ok());
+    let floor = sim.obstacle_id("floor").unwrap();
+    sim.remove_obstacle(floor).unwrap();
+    assert!(sim.obstacle_translation(floor).is_err());
+    assert!(sim.set_obstacle_velocity(floor, SVector::zeros()).is_err());
+    assert!(sim.obstacle_contact_force(floor).is_err());
+    // The last body stays.
+    sim.remove_body(c).unwrap();
+    assert!(matches!(sim.remove_body(b), Err(Error::InvalidHandle(_))));
+}
+
+fn contact_forces_balance_the_change_of_momentum<const D: usize>()
+where
+    Dim<D>: SpatialDim<D>,
+{
+    let mut sim = scene::<D>();
+    let a = sim.body_id("a").unwrap();
+    let floor = sim.obstacle_id("floor").unwrap();
+    let mass = sim.body_mass(a).unwrap();
+    let h = sim.settings().time_step;
+    let (mut started, mut stopped) = (0, 0);
+    for _ in 0..120 {
+        let p0 = momentum(&sim, a);
+        sim.step().unwrap();
+        let dp = momentum(&sim, a) - p0;
+        let f = sim.obstacle_contact_force(floor).unwrap();
+        // M (v1 - v0) = h (m g + F): internal forces cancel over a body.
+        let expected = (gravity::<D>() * mass + f) * h;
+        assert!(
+            (dp - expected).norm() <= 1e-6 * (mass * G * h + f.norm() * h),
+            "step {}: dp {dp:?} against h (m g + F) {expected:?}",
+            sim.state().step
+        );
+        // The points' forces add up to the nodes' contact forces.
+        let points: SVector<f64, D> = sim.contacts().iter().map(|c| c.force()).sum();
+        let nodal: SVector<f64, D> = (0..sim.bodies()[0].mesh.nodes.len())
+            .map(|n| sim.node_contact_force(a, n).unwrap())
+            .sum();
+        assert!((nodal - points).norm() <= 1e-9 * (1.0 + f.norm()));
+        for e in sim.contact_events() {
+            match e {
+                ContactEvent::Started(t) => {
+                    assert_eq!(*t, Touching::BodyObstacle(a, floor));
+                    started += 1;
+                }
+                ContactEvent::Stopped(_) => stopped += 1,
+            }
+        }
+    }
+    // Landed (the block may bounce: events come in pairs), and touching at the end.
+    assert!(started >= 1 && started == stopped + 1, "{started} starts, {stopped} stops");
+    assert!(sim
+        .touching()
+        .any(|t| *t == Touching::BodyObstacle(a, floor)));
+    // Resting: the floor carries the weight.
+    let f = sim.obstacle_contact_force(floor).unwrap();
+    assert!(
+        (f[D - 1] - mass * G).abs() < 0.05 * mass * G,
+        "floor force {} N against the weight {} N",
+        f[D - 1],
+        mass * G
+    );
+}
+
+fn bodies_come_and_go_between_steps<const D: usize>()
+where
+    Dim<D>: SpatialDim<D>,
+{
+    let mut sim = scene::<D>();
+    let a = sim.body_id("a").unwrap();
+    for _ in 0..20 {
+        sim.step().unwrap();
+    }
+    // Spawned on top of `a` while it runs: they touch, the body pair's forces are opposite.
+    let b = sim.add_body(cube("b", 0.0, 0.103)).unwrap();
+    let mass_b = sim.body_mass(b).unwrap();
+    let h = sim.settings().time_step;
+    let mut touched = false;
+    for _ in 0..120 {
+        let p0 = momentum(&sim, b);
+        sim.step().unwrap();
+        let on_a = sim.contact_force_between(a, b).unwrap();
+        let on_b = sim.contact_force_between(b, a).unwrap();
+        assert!((on_a + on_b).norm() <= 1e-12 * (1.0 + on_a.norm()));
+        touched |= on_a[D - 1] < 0.0;
+        // b touches only a: M (v1 - v0) = h (m g + F_ab).
+        let dp = momentum(&sim, b) - p0;
+        let expected = (gravity::<D>() * mass_b + on_b) * h;
+        assert!(
+            (dp - expected).norm() <= 1e-6 * (mass_b * G + on_b.norm()) * h,
+            "step {}: dp {dp:?} against h (m g + F) {expected:?}",
+            sim.state().step
+        );
+    }
+    assert!(touched, "b rests on a and pushes it down");
+    // Removing `a` leaves `b` where it was, with its velocity; then `b` falls to the floor.
+    let (xb, vb) = (sim.position(b, 3).unwrap(), sim.velocity(b, 3).unwrap());
+    sim.remove_body(a).unwrap();
+    assert_eq!(sim.position(b, 3).unwrap(), xb);
+    assert_eq!(sim.velocity(b, 3).unwrap(), vb);
+    assert!(sim.position(a, 0).is_err());
+    for _ in 0..240 {
+        sim.step().unwrap();
+    }
+    let lowest = sim
+        .body_positions(b)
+        .unwrap()
+        .iter()
+        .map(|x| x[D - 1])
+        .fold(f64::INFINITY, f64::min);
+    assert!(lowest.abs() < 2e-3, "b lies on the floor: lowest point {lowest} m");
+    // A snapshot continues bit for bit, whatever happened to the original since.
+    let mut copy = sim.try_clone().unwrap();
+    let saved = sim.state().clone();
+    sim.step().unwrap();
+    let next = sim.state().clone();
+    copy.step().unwrap();
+    assert_eq!(copy.state(), &next);
+    sim.set_state(saved).unwrap();
+    sim.step().unwrap();
+    assert_eq!(sim.state(), &next);
+    // No energy created by the edits.
+    let e = sim.energies();
+    let created = e.total() + e.dissipated - sim.initial_energy() - e.external_work;
+    assert!(
+        created < 0.05 * sim.energy_reference(),
+        "energy created {created} J of {} J",
+        sim.energy_reference()
+    );
+}
+
+fn a_kinematic_obstacle_follows_its_poses<const D: usize>()
+where
+    Dim<D>: SpatialDim<D>,
+{
+    // A paddle (box obstacle) the host moves and turns every step, away from the block.
+    let paddle = Obstacle::new(
+        "paddle",
+        ObstacleShape::Box {
+            center: vec_d([1.0, 0.5, 0.0]),
+            half_extents: vec_d([0.1, 0.02, 0.1]),
+        },
+    );
+    let mut sim = scene::<D>();
+    let id = sim.add_obstacle(paddle).unwrap();
+    let h = sim.settings().time_step;
+    for i in 1..=60 {
+        let t = i as f64 * h;
+        let translation = vec_d::<D>([0.2 * t, 0.1 * (3.0 * t).sin(), 0.0]);
+        let angle = 2.0 * t;
+        let rotation = SMatrix::<f64, D, D>::from_fn(|r, c| match (r, c) {
+            (0, 0) | (1, 1) => angle.cos(),
+            (1, 0) => angle.sin(),
+            (0, 1) => -angle.sin(),
+            (2, 2) => 1.0,
+            _ => 0.0,
+        });
+        sim.set_obstacle_next_pose(id, translation, rotation)
+            .unwrap();
+        sim.step().unwrap();
+        assert!((sim.obstacle_translation(id).unwrap() - translation).norm() < 1e-12);
+        assert!((sim.obstacle_rotation(id).unwrap() - rotation).amax() < 1e-12);
+    }
+    let bad = SMatrix::<f64, D, D>::identity() * 2.0;
+    assert!(sim.set_obstacle_next_pose(id, SVector::zeros(), bad).is_err());
+}
+
+fn gravity_scale_and_the_fixed_timestep<const D: usize>()
+where
+    Dim<D>: SpatialDim<D>,
+{
+    let mut sim = Simulation::<D>::builder()
+        .time_step(1.0 / 240.0)
+        .gravity(gravity())
+        .body(cube("floating", 0.0, 1.0).with_gravity_scale(0.0))
+        .body(cube("falling", 0.5, 1.0))
+        .build()
+        .unwrap();
+    let (floating, falling) = (sim.body_id("floating").unwrap(), sim.body_id("falling").unwrap());
+    let mut driver = FixedTimestep::default();
+    let mut steps = 0;
+    for _ in 0..60 {
+        let frame = driver.advance(&mut sim, 1.0 / 60.0).unwrap();
+        steps += frame.steps;
+        assert!(frame.lag < 1.0 / 240.0 && !frame.behind);
+    }
+    assert_eq!(steps, 240, "one second of host time at 240 Hz");
+    assert!((sim.state().time - 1.0).abs() < 1e-9);
+    // Free fall for 1 s: v = -g t; the weightless body does not move.
+    assert!((sim.velocity(falling, 0).unwrap()[D - 1] + G).abs() < 1e-6);
+    assert!(sim.velocity(floating, 0).unwrap().norm() < 1e-12);
+    sim.set_gravity_scale(floating, 1.0).unwrap();
+    sim.step().unwrap();
+    assert!(sim.velocity(floating, 0).unwrap()[D - 1] < 0.0);
+    // A frame far too long: at most 8 steps run, the rest is lag.
+    let frame = driver.advance(&mut sim, 1.0).unwrap();
+    assert_eq!(frame.steps, 8);
+    assert!(frame.behind && (frame.lag - (1.0 - 8.0 / 240.0)).abs() < 1e-9);
+    assert!(driver.advance(&mut sim, f64::NAN).is_err());
+}
+
+both_dims!(
+    stale_and_forged_handles_are_errors,
+    contact_forces_balance_the_change_of_momentum,
+    bodies_come_and_go_between_steps,
+    a_kinematic_obstacle_follows_its_poses,
+    gravity_scale_and_the_fixed_timestep,
+);
+
+#[test]
+fn simulations_are_send_and_sync() {
+    fn send_sync<T: Send + Sync>() {}
+    send_sync::<Simulation<2>>();
+    send_sync::<Simulation<3>>();
+    send_sync::<State>();
+    send_sync::<FixedTimestep>();
+}
