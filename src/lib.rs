@@ -96,5 +96,9 @@ pub struct ReadmeDoctests;
 pub struct BookLibraryDoctests;
 
 #[cfg(doctest)]
+#[doc = include_str!("../book/src/embedding.md")]
+pub struct BookEmbeddingDoctests;
+
+#[cfg(doctest)]
 #[doc = include_str!("../book/src/contact-detection.md")]
 pub struct BookContactDetectionDoctests;

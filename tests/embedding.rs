@@ -166,7 +166,10 @@ where
         }
     }
     // Landed (the block may bounce: events come in pairs), and touching at the end.
-    assert!(started >= 1 && started == stopped + 1, "{started} starts, {stopped} stops");
+    assert!(
+        started >= 1 && started == stopped + 1,
+        "{started} starts, {stopped} stops"
+    );
     assert!(sim
         .touching()
         .any(|t| *t == Touching::BodyObstacle(a, floor)));
@@ -226,7 +229,10 @@ where
         .iter()
         .map(|x| x[D - 1])
         .fold(f64::INFINITY, f64::min);
-    assert!(lowest.abs() < 2e-3, "b lies on the floor: lowest point {lowest} m");
+    assert!(
+        lowest.abs() < 2e-3,
+        "b lies on the floor: lowest point {lowest} m"
+    );
     // A snapshot continues bit for bit, whatever happened to the original since.
     let mut copy = sim.try_clone().unwrap();
     let saved = sim.state().clone();
@@ -280,7 +286,9 @@ where
         assert!((sim.obstacle_rotation(id).unwrap() - rotation).amax() < 1e-12);
     }
     let bad = SMatrix::<f64, D, D>::identity() * 2.0;
-    assert!(sim.set_obstacle_next_pose(id, SVector::zeros(), bad).is_err());
+    assert!(sim
+        .set_obstacle_next_pose(id, SVector::zeros(), bad)
+        .is_err());
 }
 
 fn gravity_scale_and_the_fixed_timestep<const D: usize>()
@@ -294,7 +302,10 @@ where
         .body(cube("falling", 0.5, 1.0))
         .build()
         .unwrap();
-    let (floating, falling) = (sim.body_id("floating").unwrap(), sim.body_id("falling").unwrap());
+    let (floating, falling) = (
+        sim.body_id("floating").unwrap(),
+        sim.body_id("falling").unwrap(),
+    );
     let mut driver = FixedTimestep::default();
     let mut steps = 0;
     for _ in 0..60 {
