@@ -22,14 +22,14 @@ where
         <Dim<D>>::rotation_matrix(&self.state.obstacle_rotations[k * r..k * r + r])
     }
 
-    /// Angular velocity of obstacle `k` about its pivot [rad/s] (1 component in 2D, 3 in 3D):
+    /// Angular velocity of obstacle `k` about its pivot (rad/s; 1 component in 2D, 3 in 3D):
     /// the last step's, or the one set for the next step.
     pub fn obstacle_angular_velocity(&self, k: usize) -> Vec<f64> {
         let a = <Dim<D>>::ANGULAR;
         self.state.obstacle_angular_velocities[k * a..k * a + a].to_vec()
     }
 
-    /// Where the pivot of obstacle `k` is now [m] (its pivot at t = 0 plus its translation).
+    /// Where the pivot of obstacle `k` is now (m; its pivot at t = 0 plus its translation).
     pub fn obstacle_pivot(&self, k: usize) -> SVector<f64, D> {
         self.model.obstacles[k].pivot_point() + self.obstacle_translation(k)
     }
@@ -42,7 +42,7 @@ where
         )
     }
 
-    /// The obstacles where a step of `h` [s] from the current state puts them, at the
+    /// The obstacles where a step of `h` (s) from the current state puts them, at the
     /// velocities in the state (a schedule sets those at the start of each step, so a
     /// recorder's `step_start` hook sees the step's own).
     pub fn obstacles_after(&self, h: f64) -> Vec<Obstacle<D>> {
@@ -50,7 +50,7 @@ where
         self.obstacles_at(&translations, &rotations)
     }
 
-    /// Sets the angular velocity of obstacle `k` about its pivot [rad/s] (1 component in 2D, 3
+    /// Sets the angular velocity of obstacle `k` about its pivot (rad/s) (1 component in 2D, 3
     /// in 3D) from the next step on (kinematic obstacles driven by a host).
     pub fn set_obstacle_angular_velocity(&mut self, k: usize, omega: &[f64]) -> Result<()> {
         let count = self.model.obstacles.len();
@@ -137,12 +137,12 @@ where
             .collect()
     }
 
-    /// The velocity of obstacle `k`'s pivot [m/s].
+    /// The velocity of obstacle `k`'s pivot (m/s).
     pub(super) fn obstacle_velocity(&self, k: usize) -> SVector<f64, D> {
         SVector::from_column_slice(&self.state.obstacle_velocities[k * D..k * D + D])
     }
 
-    /// The velocity of obstacle `k`'s surface at `x` [m/s], `posed` being the obstacle at the
+    /// The velocity of obstacle `k`'s surface at `x` (m/s), `posed` being the obstacle at the
     /// end of the step: `v + omega x (x - pivot)` (exactly `v` when it does not turn).
     pub(super) fn surface_velocity(
         &self,
@@ -177,7 +177,7 @@ where
     }
 
     /// The work over a step of `h` of forces (obstacle, point, force) that turning obstacles
-    /// apply, through their turning: `h f . (omega x r)`, summed [J]. The pivot's share,
+    /// apply, through their turning: `h f . (omega x r)`, summed (J). The pivot's share,
     /// `h F . v` on each obstacle's total force, is booked apart.
     pub(super) fn spin_work(
         &self,
@@ -226,7 +226,7 @@ where
 }
 
 impl Simulation<2> {
-    /// The angle obstacle `k` has turned about its pivot since t = 0 [rad] (counter-clockwise).
+    /// The angle obstacle `k` has turned about its pivot since t = 0 (rad; counter-clockwise).
     pub fn obstacle_angle(&self, k: usize) -> f64 {
         self.state.obstacle_rotations[k]
     }
