@@ -47,7 +47,7 @@ pub trait SpatialDim<const D: usize>:
     const ANGULAR: usize;
 
     /// Number of values that store a rotation (an obstacle's pose in the state): the angle
-    /// [rad] in 2D, the rotation matrix's 9 entries (column-major) in 3D.
+    /// (rad) in 2D, the rotation matrix's 9 entries (column-major) in 3D.
     const ROTATION: usize;
 
     /// Determinant of a D x D matrix.

@@ -96,7 +96,7 @@ pub enum Error {
     NotConverged {
         /// Step number (1-based).
         step: usize,
-        /// Time at the start of the step [s].
+        /// Time at the start of the step (s).
         time: f64,
         /// Iterations spent.
         iterations: usize,
@@ -114,7 +114,7 @@ pub enum Error {
     Unstable {
         /// Step number (1-based).
         step: usize,
-        /// Time at the end of the failed step [s].
+        /// Time at the end of the failed step (s).
         time: f64,
         /// The energy growth or the non-finite quantity.
         detail: String,
@@ -131,11 +131,11 @@ pub enum Error {
     EnergyCreated {
         /// Step number (1-based).
         step: usize,
-        /// Time at the end of the step [s].
+        /// Time at the end of the step (s).
         time: f64,
-        /// The scheme's conserved energy Q(t) + max(dissipated, 0) [J].
+        /// The scheme's conserved energy Q(t) + max(dissipated, 0) (J).
         energy: f64,
-        /// E(0) + |external work| [J].
+        /// E(0) + |external work| (J).
         input: f64,
         /// The excess, in percent of the input.
         percent: f64,
@@ -153,7 +153,7 @@ pub enum Error {
     InvertedCell {
         /// Step number (1-based).
         step: usize,
-        /// Time at the end of the failed step [s].
+        /// Time at the end of the failed step (s).
         time: f64,
         /// Halvings of the increment tried.
         halvings: usize,

@@ -25,7 +25,7 @@ pub(super) struct CellOutput<'a> {
     pub(super) damping_force: Option<&'a mut [f64]>,
     /// Volume-averaged stress.
     pub(super) stress: Option<&'a mut Voigt>,
-    /// Stored energy [J].
+    /// Stored energy (J).
     pub(super) energy: Option<&'a mut f64>,
 }
 
@@ -415,7 +415,7 @@ struct PointGeometry<const D: usize> {
     shape: [f64; MAX_NODES],
     grads: [SVector<f64, D>; MAX_NODES],
     position: SVector<f64, D>,
-    /// The integration weight with the Jacobian and the axisymmetric measure [m^3 or m^2].
+    /// The integration weight with the Jacobian and the axisymmetric measure (m^3 or m^2).
     dv: f64,
     /// The weight in the plane measure (no `2 pi r`), for the mean stress.
     plane_weight: f64,

@@ -189,9 +189,9 @@ pub struct BodyIntegration {
     pub kinematics: Kinematics,
     /// Constitutive law, evaluated per quadrature point.
     pub law: Arc<dyn ConstitutiveLaw>,
-    /// Mass density [kg/m^3].
+    /// Mass density (kg/m^3).
     pub density: f64,
-    /// Updated-Lagrangian laws: the stiffness-proportional Rayleigh coefficient b [s], as the
+    /// Updated-Lagrangian laws: the stiffness-proportional Rayleigh coefficient b (s), as the
     /// viscous stress `b E D` on the current configuration (a constant `b K` on the reference
     /// configuration would damp rigid rotations).
     pub stiffness_damping: f64,
@@ -226,19 +226,19 @@ pub fn history_len(table: &CellTable, bodies: &[BodyIntegration]) -> usize {
 /// The fields the element kernel evaluates the law with.
 #[derive(Debug, Clone, Copy, Default)]
 pub struct KernelFields<'a> {
-    /// Displacements at `t_alpha` (flat, D per node) [m]; `None`: zero strain.
+    /// Displacements at `t_alpha` (flat, D per node) (m); `None`: zero strain.
     pub displacement: Option<&'a [f64]>,
-    /// Velocities at `t_alpha` [m/s]; `None`: zero strain rate.
+    /// Velocities at `t_alpha` (m/s); `None`: zero strain rate.
     pub velocity: Option<&'a [f64]>,
     /// Weights of `dsigma/deps` and `dsigma/deps_dot` in the tangent.
     pub weights: (f64, f64),
-    /// Displacements at the start of the step (flat) [m]: the reference configuration of
+    /// Displacements at the start of the step (flat) (m): the reference configuration of
     /// updated-Lagrangian laws; `None`: `displacement` (no increment).
     pub start: Option<&'a [f64]>,
-    /// Displacements at the end of the step [m], for the history of updated-Lagrangian laws;
+    /// Displacements at the end of the step (m), for the history of updated-Lagrangian laws;
     /// `None`: `displacement`.
     pub end: Option<&'a [f64]>,
-    /// The step [s] and alpha, passed to the law.
+    /// The step (s) and alpha, passed to the law.
     pub time_step: f64,
     /// alpha.
     pub alpha: f64,
@@ -248,9 +248,9 @@ pub struct KernelFields<'a> {
 
 /// Stiffness and mass matrices of linear bodies, assembled on the reference configuration.
 pub struct LinearMatrices {
-    /// Stiffness K [N/m] (lower triangle).
+    /// Stiffness K (N/m; lower triangle).
     pub stiffness: SparseColMat<usize, f64>,
-    /// Mass M [kg] (lower triangle), consistent or lumped.
+    /// Mass M (kg; lower triangle), consistent or lumped.
     pub mass: SparseColMat<usize, f64>,
 }
 
@@ -463,16 +463,16 @@ pub fn von_mises(s: &Voigt) -> f64 {
 
 /// What [`integrate`] returns.
 pub struct Integrated {
-    /// Internal forces `int B^T sigma` [N] (flat, D per node).
+    /// Internal forces `int B^T sigma` (N; flat, D per node).
     pub forces: Vec<f64>,
     /// Tangent values in the pattern's triplet order, when a pattern was given.
     pub tangent: Option<Vec<f64>>,
-    /// Stored energy [J]; NaN when a cell of an updated-Lagrangian law is inverted at
+    /// Stored energy (J); NaN when a cell of an updated-Lagrangian law is inverted at
     /// `t_alpha` (its Jacobian is not positive).
     pub energy: f64,
     /// The material history at the end of the step, for these fields.
     pub history: Vec<f64>,
-    /// The part of `forces` that dissipates [N]: the stiffness-proportional damping of
+    /// The part of `forces` that dissipates (N): the stiffness-proportional damping of
     /// updated-Lagrangian bodies and the whole stress of flow laws (empty without either).
     pub damping_forces: Vec<f64>,
 }

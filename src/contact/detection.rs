@@ -149,7 +149,7 @@ where
             .any(|&g| self.facets[g].iter().any(|v| f.contains(v)))
     }
 
-    /// The area-weighted outward normal of a surface node at positions `x` [m] (not
+    /// The area-weighted outward normal of a surface node at positions `x` (m) (not
     /// normalised; zero off the surface).
     pub fn node_normal(&self, node: usize, x: &[SVector<f64, D>]) -> SVector<f64, D> {
         let mut n = SVector::zeros();
@@ -171,12 +171,12 @@ where
 pub struct DetectionOptions {
     /// Detect a body's nodes against its own facets. Default false.
     pub self_contact: bool,
-    /// Distance [m] added to the swept boxes of the broad phase, and the activation distance
+    /// Distance (m) added to the swept boxes of the broad phase, and the activation distance
     /// of the narrow phase: a pair is reported while its gap is below it. Default 0.
     pub margin: f64,
     /// Detect each body's nodes against the other bodies' facets. Default true.
     pub deformable_pairs: bool,
-    /// Hysteresis [m]: the master facet chosen at the previous call for a (slave, master) is
+    /// Hysteresis (m): the master facet chosen at the previous call for a (slave, master) is
     /// kept while it is no farther than the closest one plus this distance, so that the normal
     /// does not flip between Newton iterations near edges and corners. Default 0 (exact ties
     /// only keep the previous choice).
@@ -216,11 +216,11 @@ pub struct ContactPair<const D: usize> {
     pub slave: usize,
     /// The master: the obstacle, or the chosen facet of the master body.
     pub master: Master,
-    /// Signed gap `(x_P - Q) . n` [m]; negative is penetration.
+    /// Signed gap `(x_P - Q) . n` (m); negative is penetration.
     pub gap: f64,
     /// Unit outward normal of the master at Q (the facet's normal for a facet).
     pub normal: SVector<f64, D>,
-    /// The closest point Q on the master [m].
+    /// The closest point Q on the master (m).
     pub point: SVector<f64, D>,
     /// Weights of the master facet's nodes at Q (`[1, 0, ..]` for an obstacle).
     pub barycentric: [f64; D],
@@ -291,7 +291,7 @@ struct Choice<const D: usize> {
 /// Chooses the master facet for point `p` among `candidates`: the closest one; among facets
 /// at the same distance (a shared edge or vertex), the one whose normal best follows `p - Q`
 /// (largest gap), then the lowest index; the previous choice is kept while it is within
-/// `hysteresis` [m] of the closest. Degenerate facets and those `accept` rejects are skipped.
+/// `hysteresis` (m) of the closest. Degenerate facets and those `accept` rejects are skipped.
 fn choose<const D: usize>(
     p: &SVector<f64, D>,
     candidates: impl Iterator<Item = usize>,
@@ -454,7 +454,7 @@ where
         self.previous = memory.iter().copied().collect();
     }
 
-    /// The swept box of every facet at the last update [m] (the broad phase's leaves).
+    /// The swept box of every facet at the last update (m; the broad phase's leaves).
     pub fn facet_boxes(&self) -> &[Aabb<D>] {
         &self.facet_boxes
     }
@@ -479,7 +479,7 @@ where
     /// Broad phase over a step: each slave's segment from `x0` to `x1` against each facet's
     /// box swept from `x0` to `x1` (grown by the margin), and against each obstacle's region
     /// swept from its `translation` (t0) to `obstacle_translation_t1` (t1), grown by the
-    /// margin. `x0`, `x1` are global node positions [m]. Deterministic order.
+    /// margin. `x0`, `x1` are global node positions (m). Deterministic order.
     ///
     /// # Panics
     /// If `x0` or `x1` is shorter than [`ContactSurface::node_count`], or the translations do
@@ -614,7 +614,7 @@ where
         });
     }
 
-    /// Narrow phase at the configuration `x` (global node positions [m], usually the predicted
+    /// Narrow phase at the configuration `x` (global node positions (m), usually the predicted
     /// end of the step) with the obstacles in their pose: one pair per (slave,
     /// obstacle) and per (slave, master body) among the candidates whose gap is below the
     /// margin. Sorted by slave, then master.

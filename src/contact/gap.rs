@@ -14,13 +14,13 @@ use crate::dim::{Dim, SpatialDim};
 /// The gap of a point to the plane of a facet.
 #[derive(Debug, Clone, Copy)]
 pub struct FacetGap<const D: usize> {
-    /// Signed gap `(x - y_0) . n` [m]; negative is penetration.
+    /// Signed gap `(x - y_0) . n` (m); negative is penetration.
     pub gap: f64,
     /// The facet's outward unit normal.
     pub normal: SVector<f64, D>,
     /// Barycentric weights (unclamped) of the projection of the point on the facet's plane.
     pub weights: [f64; D],
-    /// The projection of the point on the facet's plane [m].
+    /// The projection of the point on the facet's plane (m).
     pub point: SVector<f64, D>,
 }
 
@@ -155,11 +155,11 @@ pub fn point_gap<const D: usize>(
 /// A point's gap to an analytic obstacle.
 #[derive(Debug, Clone, Copy)]
 pub struct ObstacleGap<const D: usize> {
-    /// Signed gap [m]; negative is penetration.
+    /// Signed gap (m); negative is penetration.
     pub gap: f64,
     /// The obstacle's outward unit normal at the closest point.
     pub normal: SVector<f64, D>,
-    /// The closest point on the obstacle's surface [m].
+    /// The closest point on the obstacle's surface (m).
     pub point: SVector<f64, D>,
     /// The feature holding it.
     pub feature: Feature,
@@ -169,7 +169,7 @@ pub struct ObstacleGap<const D: usize> {
 }
 
 /// The gap of point `p` to an analytic obstacle (half-space, ball, box) at `translation`;
-/// `previous` and `hysteresis` [m] keep a box's exit face stable near its diagonals. `None`
+/// `previous` and `hysteresis` (m) keep a box's exit face stable near its diagonals. `None`
 /// for a degenerate shape or a facet obstacle (searched by the detector).
 pub fn analytic_obstacle_gap<const D: usize>(
     shape: &ObstacleShape<D>,

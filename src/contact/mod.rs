@@ -1,7 +1,7 @@
 //! Contact: rigid obstacles, detection (broad and narrow phase), the gap, and the methods that
 //! enforce the contact conditions (the soft way, implicit and explicit projection, augmented
-//! Lagrangian), one file each behind one interface ([`methods`]). Friction laws live in
-//! [`crate::friction`].
+//! Lagrangian), one file each behind one internal interface (the crate-private module
+//! `contact::methods`), chosen by [`ContactMethod`]. Friction laws live in [`crate::friction`].
 
 pub mod detection;
 pub mod gap;

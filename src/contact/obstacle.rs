@@ -5,36 +5,36 @@
 use nalgebra::{SMatrix, SVector};
 use serde::{Deserialize, Serialize};
 
-/// The shape of a rigid obstacle, in its position at t = 0 [m].
+/// The shape of a rigid obstacle, in its position at t = 0 (m).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(tag = "type", rename_all = "snake_case")]
 pub enum ObstacleShape<const D: usize> {
     /// The half-space `(x - point) . normal <= 0` is solid; `normal` points out of it.
     Halfspace {
-        /// A point of the boundary plane [m].
+        /// A point of the boundary plane (m).
         point: SVector<f64, D>,
         /// Outward normal (normalised when used).
         normal: SVector<f64, D>,
     },
     /// A solid box, axis-aligned at t = 0 (it turns with its obstacle).
     Box {
-        /// Centre [m].
+        /// Centre (m).
         center: SVector<f64, D>,
-        /// Half extents [m], > 0.
+        /// Half extents (m), > 0.
         half_extents: SVector<f64, D>,
     },
     /// A solid ball (disc in 2D).
     Ball {
-        /// Centre [m].
+        /// Centre (m).
         center: SVector<f64, D>,
-        /// Radius [m], > 0.
+        /// Radius (m), > 0.
         radius: f64,
     },
     /// 2D: a polyline of segments; 3D: a triangle mesh. Facets are oriented like boundary
     /// facets of a body (2D: solid on the left of each segment; 3D: counter-clockwise seen from
     /// outside).
     Facets {
-        /// Vertices [m].
+        /// Vertices (m).
         vertices: Vec<SVector<f64, D>>,
         /// D vertex indices per facet.
         indices: Vec<Vec<usize>>,
@@ -44,11 +44,11 @@ pub enum ObstacleShape<const D: usize> {
 /// One piece of an obstacle's motion schedule: a constant velocity until `until`.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct MotionSegment<const D: usize> {
-    /// The end of this piece [s] (it starts where the previous one ends, the first at 0).
+    /// The end of this piece (s) (it starts where the previous one ends, the first at 0).
     pub until: f64,
-    /// Linear velocity [m/s].
+    /// Linear velocity (m/s).
     pub velocity: SVector<f64, D>,
-    /// Angular velocity about the pivot [rad/s]: 1 component in 2D, 3 in 3D (empty: none).
+    /// Angular velocity about the pivot (rad/s): 1 component in 2D, 3 in 3D (empty: none).
     #[serde(default)]
     pub angular_velocity: Vec<f64>,
 }
@@ -61,11 +61,11 @@ pub struct Obstacle<const D: usize> {
     pub name: String,
     /// Shape at t = 0.
     pub shape: ObstacleShape<D>,
-    /// Velocity [m/s].
+    /// Velocity (m/s).
     pub velocity: SVector<f64, D>,
-    /// Displacement of the obstacle (of its pivot) since t = 0 [m] (advanced every step).
+    /// Displacement of the obstacle (of its pivot) since t = 0 (m) (advanced every step).
     pub translation: SVector<f64, D>,
-    /// Angular velocity about the pivot [rad/s]: 1 component in 2D, 3 in 3D (empty: none).
+    /// Angular velocity about the pivot (rad/s): 1 component in 2D, 3 in 3D (empty: none).
     #[serde(default)]
     pub angular_velocity: Vec<f64>,
     /// Rotation about the pivot since t = 0 (advanced every step; the identity: not turned).
@@ -78,7 +78,7 @@ pub struct Obstacle<const D: usize> {
     /// `angular_velocity`, and after the last piece the obstacle stops.
     #[serde(default)]
     pub motion: Vec<MotionSegment<D>>,
-    /// The point rotations turn about, at t = 0 [m] (default: the shape's point or centre, the
+    /// The point rotations turn about, at t = 0 (m) (default: the shape's point or centre, the
     /// vertices' centroid for facets); it moves with the translation.
     #[serde(default)]
     pub pivot: Option<SVector<f64, D>>,
@@ -110,7 +110,7 @@ impl<const D: usize> Obstacle<D> {
         self
     }
 
-    /// The displacement of a scheduled obstacle between times `t0` and `t1` [m] (the integral
+    /// The displacement of a scheduled obstacle between times `t0` and `t1` (m) (the integral
     /// of its piecewise-constant velocity); `None` without a schedule.
     pub fn scheduled_displacement(&self, t0: f64, t1: f64) -> Option<SVector<f64, D>> {
         if self.motion.is_empty() {
@@ -134,25 +134,25 @@ impl<const D: usize> Obstacle<D> {
         self
     }
 
-    /// Sets the velocity [m/s].
+    /// Sets the velocity (m/s).
     pub fn with_velocity(mut self, v: SVector<f64, D>) -> Self {
         self.velocity = v;
         self
     }
 
-    /// Sets the angular velocity about the pivot [rad/s] (1 component in 2D, 3 in 3D).
+    /// Sets the angular velocity about the pivot (rad/s) (1 component in 2D, 3 in 3D).
     pub fn with_angular_velocity(mut self, omega: &[f64]) -> Self {
         self.angular_velocity = omega.to_vec();
         self
     }
 
-    /// Sets the point rotations turn about, at t = 0 [m].
+    /// Sets the point rotations turn about, at t = 0 (m).
     pub fn with_pivot(mut self, pivot: SVector<f64, D>) -> Self {
         self.pivot = Some(pivot);
         self
     }
 
-    /// The pivot at t = 0 [m]: [`Obstacle::pivot`], else the half-space's point, the box's or
+    /// The pivot at t = 0 (m): [`Obstacle::pivot`], else the half-space's point, the box's or
     /// ball's centre, the facets' vertex centroid.
     pub fn pivot_point(&self) -> SVector<f64, D> {
         if let Some(p) = self.pivot {
@@ -174,7 +174,7 @@ impl<const D: usize> Obstacle<D> {
         self.rotation != SMatrix::<f64, D, D>::identity()
     }
 
-    /// A world point `x` in the frame of the shape at t = 0 [m].
+    /// A world point `x` in the frame of the shape at t = 0 (m).
     pub fn to_local(&self, x: &SVector<f64, D>) -> SVector<f64, D> {
         if !self.is_turned() {
             return x - self.translation;
@@ -183,7 +183,7 @@ impl<const D: usize> Obstacle<D> {
         p + self.rotation.transpose() * (x - p - self.translation)
     }
 
-    /// A point `y` of the shape at t = 0 where the pose puts it [m].
+    /// A point `y` of the shape at t = 0 where the pose puts it (m).
     pub fn to_world(&self, y: &SVector<f64, D>) -> SVector<f64, D> {
         if !self.is_turned() {
             return y + self.translation;

@@ -57,11 +57,11 @@ pub use crate::friction::{FrictionLaw, DEFAULT_REGULARIZATION};
 pub struct ContactSettings {
     /// The method.
     pub method: ContactMethod,
-    /// zeta [Pa/m]: contact pressure per unit penetration (soft way, augmented Lagrangian).
+    /// zeta (Pa/m): contact pressure per unit penetration (soft way, augmented Lagrangian).
     pub penalty: f64,
     /// Whether a body's nodes are checked against its own facets.
     pub self_contact: bool,
-    /// Augmented Lagrangian: Uzawa stops when every gap is within this [m]; implicit
+    /// Augmented Lagrangian: Uzawa stops when every gap is within this (m); implicit
     /// projection: the relative normal velocity tolerance is this over h.
     pub gap_tolerance: f64,
     /// The default friction law.

@@ -3,7 +3,7 @@
 //!
 //! **Penalty methods (soft way, augmented Lagrangian): a return map.** Coulomb and Tresca are
 //! a tangential penalty with an elastic-slip anchor (Wriggers 2006, Laursen 2002; the notes'
-//! section 3), [`return_map`]. Each contact carries its elastic slip `s_e` in the state (reset
+//! section 3), the crate-internal `return_map`. Each contact carries its elastic slip `s_e` in the state (reset
 //! when the contact opens, re-projected onto the current tangent plane). With the slip
 //! increment `h w_t`, `w_t = (I - n n) w1` the relative tangential *end* velocity (not the
 //! trapezoid mean: with the mean, stick would force `w_t1 = -w_t0`), the trial force is
@@ -16,7 +16,7 @@
 //!
 //! with `limit = mu F_n` (Coulomb, the *current* normal force of the iterate: no lagged fixed
 //! point) or `limit = tau_max A` (Tresca, while the contact is closed). The tangential penalty
-//! is the normal one, `eps_t = zeta` [Pa/m]: the elastic slip in stick is at most `mu` times the
+//! is the normal one, `eps_t = zeta` (Pa/m): the elastic slip in stick is at most `mu` times the
 //! penetration, and it does not drift (an anchor, not a damper). The consistent tangent
 //! `d(-F_t)/dw1` is `eps_t A h (I - n n)` in stick and `(limit eps_t A h/|F_tr|)(I - n n - t t)`
 //! in slip; the slip's rank-one coupling of the threshold to the gap, `mu t dF_n/dv1`, is not
@@ -25,9 +25,9 @@
 //!
 //! **Implicit projection** keeps the smooth law `F_t = -mu F_n v_t / sqrt(|v_t|^2 + v_reg^2)`
 //! ([`FrictionLaw::force`]) on the mean relative tangential velocity
-//! `v_t = (I - n n) (w0 + w1)/2`, `v_reg` the `regularization` [m/s] (a creep velocity in
+//! `v_t = (I - n n) (w0 + w1)/2`, `v_reg` the `regularization` (m/s) (a creep velocity in
 //! stick), and Coulomb's threshold `mu F_n` follows the normal force by a fixed point between
-//! Newton solves ([`threshold_change`]). Viscoplastic friction is that smooth law everywhere.
+//! Newton solves (the crate-internal `threshold_change`). Viscoplastic friction is that smooth law everywhere.
 //!
 //! Dissipation is booked in every case as `-F_t . (h/2)(I - n n)(w0 + w1)`, the work along the
 //! slip of eq 22 (the displacement of the configuration update): the energy account stays
@@ -40,7 +40,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::error::{Error, Result};
 
-/// Default regularisation velocity of the friction laws [m/s].
+/// Default regularisation velocity of the friction laws (m/s).
 pub const DEFAULT_REGULARIZATION: f64 = 1e-6;
 
 /// A tangential law.
@@ -52,29 +52,29 @@ pub enum FrictionLaw {
     Frictionless,
     /// `|F_t| <= mu F_n`. Under penalty methods, the return map (module docs); under implicit
     /// projection, `F_t = -mu F_n v_t / sqrt(|v_t|^2 + v_reg^2)`, a stick regularised below
-    /// `regularization` [m/s] of slip rate.
+    /// `regularization` (m/s) of slip rate.
     Coulomb {
-        /// mu [-].
+        /// mu (dimensionless).
         coefficient: f64,
-        /// Slip-rate scale of the regularised stick [m/s].
+        /// Slip-rate scale of the regularised stick (m/s).
         regularization: f64,
     },
     /// `|F_t| <= limit A` (a limit shear stress) on closed contacts: the return map under
     /// penalty methods, regularised like Coulomb under implicit projection.
     Tresca {
-        /// Limit shear stress [Pa].
+        /// Limit shear stress (Pa).
         limit: f64,
-        /// Slip-rate scale of the regularised stick [m/s].
+        /// Slip-rate scale of the regularised stick (m/s).
         regularization: f64,
     },
     /// `F_t = -a A |v_t|^(p-1) v_t` (eq 33) with `|v_t|` replaced by
     /// `sqrt(|v_t|^2 + v_reg^2)` (eq 34).
     Viscoplastic {
-        /// a [Pa (s/m)^p].
+        /// a (Pa (s/m)^p).
         coefficient: f64,
-        /// p [-].
+        /// p (dimensionless).
         exponent: f64,
-        /// v_reg [m/s].
+        /// v_reg (m/s).
         regularization: f64,
     },
 }
@@ -121,8 +121,8 @@ impl FrictionLaw {
         Ok(())
     }
 
-    /// The friction force on the slave for a normal force `normal_force` [N], a tributary area
-    /// `area` [m^2] and a tangential relative velocity `slip` [m/s] (in the tangent plane of
+    /// The friction force on the slave for a normal force `normal_force` (N), a tributary area
+    /// `area` (m^2) and a tangential relative velocity `slip` (m/s) (in the tangent plane of
     /// `normal`), with its derivative with respect to `slip` (the normal force held fixed).
     pub fn force<const D: usize>(
         &self,
@@ -183,15 +183,15 @@ impl FrictionLaw {
 /// The outcome of the return map of one contact.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub(crate) struct ReturnMap<const D: usize> {
-    /// Friction force on the slave [N] (in the tangent plane).
+    /// Friction force on the slave (N; in the tangent plane).
     pub force: SVector<f64, D>,
-    /// The elastic slip after the step [m] (`-force / (eps_t A)`).
+    /// The elastic slip after the step (m) (`-force / (eps_t A)`).
     pub anchor: SVector<f64, D>,
     /// Whether the contact slips.
     pub slipping: bool,
-    /// `d(-force)/dw1`, w1 the relative end velocity, the limit held fixed [N s/m] (symmetric).
+    /// `d(-force)/dw1`, w1 the relative end velocity, the limit held fixed (N s/m; symmetric).
     pub tangent: SMatrix<f64, D, D>,
-    /// `d force / d limit` (the slip direction in slip, zero in stick) [-].
+    /// `d force / d limit` (the slip direction in slip, zero in stick) (dimensionless).
     pub d_limit: SVector<f64, D>,
 }
 
@@ -204,8 +204,8 @@ impl FrictionLaw {
         )
     }
 
-    /// The return map's slip limit [N] for a normal force `normal_force` [N] and a contact area
-    /// `area` [m^2] (zero for an open contact or a law without a return map).
+    /// The return map's slip limit (N) for a normal force `normal_force` (N) and a contact area
+    /// `area` (m^2; zero for an open contact or a law without a return map).
     pub fn slip_limit(&self, normal_force: f64, area: f64) -> f64 {
         if normal_force <= 0.0 {
             return 0.0;
@@ -218,10 +218,10 @@ impl FrictionLaw {
     }
 }
 
-/// The return map of one closed contact (module docs): slip limit `limit` [N], tangential
-/// stiffness `stiffness = eps_t A` [N/m], the previous elastic slip `anchor` [m] (re-projected
-/// here onto the tangent plane of `normal`), the relative end velocity `w1` [m/s] and the step
-/// `h` [s]. `|F_tr| <= limit` (F_tr = 0 included) is stick.
+/// The return map of one closed contact (module docs): slip limit `limit` (N), tangential
+/// stiffness `stiffness = eps_t A` (N/m), the previous elastic slip `anchor` (m) (re-projected
+/// here onto the tangent plane of `normal`), the relative end velocity `w1` (m/s) and the step
+/// `h` (s). `|F_tr| <= limit` (F_tr = 0 included) is stick.
 pub(crate) fn return_map<const D: usize>(
     limit: f64,
     stiffness: f64,
@@ -261,7 +261,7 @@ pub(crate) struct ThresholdSample<K> {
     pub key: K,
     /// The law acting on it.
     pub law: FrictionLaw,
-    /// Its normal force [N].
+    /// Its normal force (N).
     pub normal_force: f64,
 }
 

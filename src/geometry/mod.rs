@@ -17,12 +17,12 @@ mod sealed {
     impl Sealed for crate::dim::Dim<3> {}
 }
 
-/// An axis-aligned box `[min, max]` [m].
+/// An axis-aligned box `[min, max]` (m).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Aabb<const D: usize> {
-    /// Smallest coordinates [m].
+    /// Smallest coordinates (m).
     pub min: SVector<f64, D>,
-    /// Largest coordinates [m].
+    /// Largest coordinates (m).
     pub max: SVector<f64, D>,
 }
 
@@ -40,7 +40,7 @@ impl<const D: usize> Aabb<D> {
         b
     }
 
-    /// The box grown by `margin` [m] on every side.
+    /// The box grown by `margin` (m) on every side.
     pub fn loosened(&self, margin: f64) -> Self {
         Aabb {
             min: self.min.add_scalar(-margin),
@@ -61,7 +61,7 @@ impl<const D: usize> Aabb<D> {
         (0..D).all(|k| self.min[k] <= other.max[k] && other.min[k] <= self.max[k])
     }
 
-    /// Euclidean distance between the two boxes [m] (0 when they overlap).
+    /// Euclidean distance between the two boxes (m; 0 when they overlap).
     pub fn distance(&self, other: &Self) -> f64 {
         let mut d2 = 0.0;
         for k in 0..D {
@@ -93,7 +93,7 @@ pub enum Feature {
 /// The closest point of a facet to a point.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct FacetProjection<const D: usize> {
-    /// The closest point Q [m].
+    /// The closest point Q (m).
     pub point: SVector<f64, D>,
     /// Weights of the facet's nodes at Q (they sum to 1).
     pub barycentric: [f64; D],
@@ -164,7 +164,7 @@ pub trait GeometryDim<const D: usize>: sealed::Sealed {
     #[doc(hidden)]
     fn tree_query(tree: &Self::Tree, query: &Aabb<D>, out: &mut Vec<usize>);
 
-    /// The closest point to `p` [m] on the facet with vertices `v` [m], with its barycentric
+    /// The closest point to `p` (m) on the facet with vertices `v` (m), with its barycentric
     /// weights and feature. `None` for a degenerate facet (zero length or zero area).
     fn project_on_facet(
         p: &SVector<f64, D>,

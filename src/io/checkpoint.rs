@@ -49,11 +49,11 @@ where
     pub softway_version: String,
     /// The scene file's stem (names the `.pvd` collection).
     pub stem: String,
-    /// End time of the run [s].
+    /// End time of the run (s).
     pub end_time: f64,
-    /// `[output]` history_interval [s] (0 = every step).
+    /// `[output]` history_interval (s; 0 = every step).
     pub history_interval: f64,
-    /// `[output]` vtk_interval [s] (0 = no VTK files).
+    /// `[output]` vtk_interval (s; 0 = no VTK files).
     pub vtk_interval: f64,
     /// The probes: (name, body index, node of the body's mesh).
     pub probes: Vec<(String, usize, usize)>,
@@ -68,21 +68,21 @@ where
 /// What the run loop carries from step to step besides the simulation's state.
 #[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
 pub struct RunRecord {
-    /// The checkpoint interval of the run [steps] (0: none).
+    /// The checkpoint interval of the run (steps; 0: none).
     pub checkpoint_every: usize,
     /// Newton plus contact iterations so far.
     pub total_iterations: usize,
-    /// Largest penetration so far [m].
+    /// Largest penetration so far (m).
     pub max_penetration: f64,
     /// Wall-clock seconds spent so far, over every resumption.
     pub wall_seconds: f64,
     /// Warnings of the summary so far (the simulation's, from its model).
     pub warnings: Vec<String>,
-    /// Time of the last history row [s].
+    /// Time of the last history row (s).
     pub last_history: f64,
-    /// Time of the next VTK frame [s].
+    /// Time of the next VTK frame (s).
     pub next_vtk: f64,
-    /// Largest rotation of each body seen so far (small-strain laws warn about it) [rad].
+    /// Largest rotation of each body seen so far (small-strain laws warn about it) (rad).
     pub turned: Vec<f64>,
     /// The text of `history.csv` so far, header included.
     pub history: String,

@@ -26,13 +26,13 @@ use crate::simulation::{RunMonitor, Simulation, StepReport};
 pub struct Summary {
     /// Steps taken.
     pub steps: usize,
-    /// Time reached [s].
+    /// Time reached (s).
     pub final_time: f64,
     /// Newton plus contact iterations over the run.
     pub total_iterations: usize,
-    /// Largest penetration over the run [m].
+    /// Largest penetration over the run (m).
     pub max_penetration: f64,
-    /// Wall-clock duration [s].
+    /// Wall-clock duration (s).
     pub wall_seconds: f64,
     /// |E(t_end) - E(0) - external_work + dissipated| / max(E(0) + |external_work|, tiny).
     pub energy_drift: f64,
@@ -42,13 +42,13 @@ pub struct Summary {
     pub status: String,
     /// The error of a failed run.
     pub error: Option<String>,
-    /// Energy at t = 0 [J].
+    /// Energy at t = 0 (J).
     pub initial_energy: f64,
-    /// Kinetic + internal + contact energy at the end [J].
+    /// Kinetic + internal + contact energy at the end (J).
     pub final_energy: f64,
-    /// Cumulative external work [J].
+    /// Cumulative external work (J).
     pub external_work: f64,
-    /// Cumulative dissipation [J].
+    /// Cumulative dissipation (J).
     pub dissipated_energy: f64,
     /// The last checkpoint this run wrote, relative to the output folder
     /// (`checkpoints/step_<N>.ckpt`), if any.
@@ -58,9 +58,9 @@ pub struct Summary {
 /// Progress of a run, for progress bars.
 #[derive(Debug, Clone, Copy)]
 pub struct Progress {
-    /// Current time [s].
+    /// Current time (s).
     pub time: f64,
-    /// End time [s].
+    /// End time (s).
     pub end_time: f64,
     /// Steps done.
     pub steps: usize,
@@ -457,7 +457,7 @@ where
     )
 }
 
-/// Continues a run from a checkpoint ([`checkpoint::read`](super::checkpoint::read)),
+/// Continues a run from a checkpoint ([`checkpoint::read`]),
 /// writing into `out`: `history.csv` is rewritten with the checkpoint's rows, then every
 /// step appends to it exactly as the uninterrupted run would have; the `.pvd` collection
 /// keeps the checkpoint's frames whose files are in `out` (all of them when `out` is the

@@ -31,11 +31,11 @@ pub enum RotationUpdate {
 /// Corotational hypoelasticity: large rotations, small elastic strains.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct Hypoelastic {
-    /// Young's modulus E [Pa], > 0.
+    /// Young's modulus E (Pa), > 0.
     pub youngs_modulus: f64,
     /// Poisson's ratio nu, in (-1, 0.5).
     pub poissons_ratio: f64,
-    /// Mass density rho [kg/m^3], >= 0.
+    /// Mass density rho (kg/m^3), >= 0.
     pub density: f64,
     /// The incremental rotation.
     #[serde(default)]

@@ -23,22 +23,22 @@ use crate::dim::{Kinematics, Voigt, VoigtMatrix};
 pub struct PointKinematics {
     /// The body's kinematics (plane strain, plane stress, axisymmetric, solid).
     pub kinematics: Kinematics,
-    /// Small strain of the displacement at `t_alpha` [-] (Voigt, engineering shears).
+    /// Small strain of the displacement at `t_alpha` (dimensionless; Voigt, engineering shears).
     pub strain: Voigt,
-    /// Rate of deformation at `t_alpha` [1/s] (Voigt, engineering shears).
+    /// Rate of deformation at `t_alpha` (1/s; Voigt, engineering shears).
     pub strain_rate: Voigt,
-    /// Spin (skew part of the velocity gradient) at `t_alpha` [1/s].
+    /// Spin (skew part of the velocity gradient) at `t_alpha` (1/s).
     pub spin: Matrix3<f64>,
-    /// The step h [s].
+    /// The step h (s).
     pub time_step: f64,
-    /// The scheme's alpha [-].
+    /// The scheme's alpha (dimensionless).
     pub alpha: f64,
     /// Updated-Lagrangian laws: the gradient of the displacement increment from `t0` to
     /// `t_alpha` with respect to the configuration at `t0` (3 x 3: in-plane block, and the
-    /// hoop term `du_r / r` in the zz slot of axisymmetric kinematics) [-].
+    /// hoop term `du_r / r` in the zz slot of axisymmetric kinematics) (dimensionless).
     pub increment: Matrix3<f64>,
     /// The same from `t0` to `t1` (the configuration update), for the history at the end of
-    /// the step [-].
+    /// the step (dimensionless).
     pub end_increment: Matrix3<f64>,
     /// Whether Newton asks for the secant rather than the consistent tangent (laws whose
     /// consistent tangent overshoots far from the solution, power-law flows: Kacanov's
@@ -49,13 +49,13 @@ pub struct PointKinematics {
 /// What a law returns at one point.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct PointResponse {
-    /// Cauchy stress [Pa] (Voigt).
+    /// Cauchy stress (Pa; Voigt).
     pub stress: Voigt,
-    /// `d stress / d strain` at fixed strain rate [Pa].
+    /// `d stress / d strain` at fixed strain rate (Pa).
     pub stiffness: VoigtMatrix,
-    /// `d stress / d strain_rate` at fixed strain [Pa s].
+    /// `d stress / d strain_rate` at fixed strain (Pa s).
     pub viscosity: VoigtMatrix,
-    /// Stored (recoverable) energy per unit volume [J/m^3].
+    /// Stored (recoverable) energy per unit volume (J/m^3).
     pub energy_density: f64,
 }
 

@@ -21,11 +21,11 @@ use crate::error::{Error, Result};
 /// Isotropic linear elasticity (small strain).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct LinearElastic {
-    /// Young's modulus E [Pa], > 0.
+    /// Young's modulus E (Pa), > 0.
     pub youngs_modulus: f64,
     /// Poisson's ratio nu, in (-1, 0.5).
     pub poissons_ratio: f64,
-    /// Mass density rho [kg/m^3], >= 0.
+    /// Mass density rho (kg/m^3), >= 0.
     pub density: f64,
 }
 
@@ -64,13 +64,13 @@ impl LinearElastic {
         Ok(())
     }
 
-    /// Lame's first parameter lambda [Pa].
+    /// Lame's first parameter lambda (Pa).
     pub fn lambda(&self) -> f64 {
         let (e, nu) = (self.youngs_modulus, self.poissons_ratio);
         e * nu / ((1.0 + nu) * (1.0 - 2.0 * nu))
     }
 
-    /// Shear modulus mu [Pa].
+    /// Shear modulus mu (Pa).
     pub fn shear_modulus(&self) -> f64 {
         self.youngs_modulus / (2.0 * (1.0 + self.poissons_ratio))
     }
@@ -89,7 +89,7 @@ impl LinearElastic {
         c
     }
 
-    /// Speed of the longitudinal (pressure) wave [m/s] in these kinematics.
+    /// Speed of the longitudinal (pressure) wave (m/s) in these kinematics.
     pub fn wave_speed(&self, kinematics: Kinematics) -> f64 {
         if self.density <= 0.0 {
             return f64::INFINITY;
@@ -118,7 +118,7 @@ pub enum Material {
 pub const NEARLY_INCOMPRESSIBLE: f64 = 0.4;
 
 impl Material {
-    /// Mass density [kg/m^3].
+    /// Mass density (kg/m^3).
     pub fn density(&self) -> f64 {
         match self {
             Material::LinearElastic(m) => m.density,
@@ -136,7 +136,7 @@ impl Material {
         }
     }
 
-    /// Longitudinal wave speed [m/s], for step-size estimates.
+    /// Longitudinal wave speed (m/s), for step-size estimates.
     pub fn wave_speed(&self, kinematics: Kinematics) -> f64 {
         match self {
             Material::LinearElastic(m) => m.wave_speed(kinematics),

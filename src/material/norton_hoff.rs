@@ -15,7 +15,7 @@ use super::{ConstitutiveLaw, PointKinematics, PointResponse};
 use crate::dim::{Voigt, VoigtMatrix};
 use crate::error::Result;
 
-/// The default regularisation of the equivalent strain rate [1/s].
+/// The default regularisation of the equivalent strain rate (1/s).
 pub const DEFAULT_RATE_REGULARIZATION: f64 = 1e-6;
 
 fn default_regularization() -> f64 {
@@ -25,15 +25,15 @@ fn default_regularization() -> f64 {
 /// Norton-Hoff viscoplasticity.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct NortonHoff {
-    /// Consistency K [Pa s^m], > 0.
+    /// Consistency K (Pa s^m), > 0.
     pub consistency: f64,
     /// Rate sensitivity m, in (0, 1] (m = 1: a Newtonian fluid of viscosity K).
     pub exponent: f64,
-    /// Mass density rho [kg/m^3], >= 0 (0: quasi-static flow).
+    /// Mass density rho (kg/m^3), >= 0 (0: quasi-static flow).
     pub density: f64,
-    /// Penalty on the volumetric rate [Pa s], > 0 (a few decades above the viscosity).
+    /// Penalty on the volumetric rate (Pa s), > 0 (a few decades above the viscosity).
     pub bulk_penalty: f64,
-    /// Regularisation of the equivalent strain rate [1/s], > 0.
+    /// Regularisation of the equivalent strain rate (1/s), > 0.
     #[serde(default = "default_regularization")]
     pub rate_regularization: f64,
 }
@@ -86,7 +86,7 @@ impl NortonHoff {
         Ok(())
     }
 
-    /// The uniaxial flow stress at strain rate `rate` [Pa]: `sqrt(3) K (sqrt(3) rate)^m`.
+    /// The uniaxial flow stress at strain rate `rate` (Pa): `sqrt(3) K (sqrt(3) rate)^m`.
     pub fn flow_stress(&self, rate: f64) -> f64 {
         3f64.sqrt() * self.consistency * (3f64.sqrt() * rate).powf(self.exponent)
     }

@@ -56,7 +56,7 @@ pub struct BoundaryFace {
 /// A finite element mesh in D dimensions, coordinates in metres.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Mesh<const D: usize> {
-    /// Node coordinates [m].
+    /// Node coordinates (m).
     pub nodes: Vec<SVector<f64, D>>,
     /// Cells grouped by element type.
     pub blocks: Vec<CellBlock>,
@@ -190,7 +190,7 @@ where
         j
     }
 
-    /// The diagonal of the bounding box [m].
+    /// The diagonal of the bounding box (m).
     pub fn characteristic_length(&self) -> f64 {
         let (lo, hi) = self.bounding_box();
         (hi - lo).norm().max(f64::MIN_POSITIVE)

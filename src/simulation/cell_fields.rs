@@ -8,7 +8,7 @@ impl<const D: usize> Simulation<D>
 where
     Dim<D>: SpatialDim<D>,
 {
-    /// The equivalent logarithmic strain of every cell, bodies in order [-]:
+    /// The equivalent logarithmic strain of every cell, bodies in order (dimensionless):
     /// `sqrt(2/3 e : e)`, `e` the deviatoric part of the Hencky strain `ln(F^T F) / 2`,
     /// averaged over the cell by volume (0 at rest; 1 for a bar stretched incompressibly to
     /// e = 2.718 times its length). On a proportional path it is the accumulated equivalent
@@ -23,7 +23,7 @@ where
         )
     }
 
-    /// Average Voigt stress of every cell, bodies in order [Pa].
+    /// Average Voigt stress of every cell, bodies in order (Pa).
     pub fn cell_stresses(&self) -> Vec<crate::dim::Voigt> {
         assembly::cell_stresses::<D>(
             &self.table,

@@ -21,7 +21,7 @@ pub(super) type RankOne = (Vec<(usize, f64)>, Vec<(usize, f64)>);
 /// Everything contact adds to one iteration.
 #[derive(Default)]
 pub(super) struct ContactTerms<const D: usize> {
-    /// Contact forces on the nodes [N] (flat, D per node).
+    /// Contact forces on the nodes (N; flat, D per node).
     pub forces: Vec<f64>,
     /// Tangent entries `d(-forces)/dv1` (lower triangle).
     pub entries: Vec<(usize, usize, f64)>,
@@ -35,9 +35,9 @@ pub(super) struct ContactTerms<const D: usize> {
     /// slipping contact (sparse `u`, `v`). Newton adds it to the symmetric solves by the
     /// Sherman-Morrison-Woodbury formula, so that the Cholesky never sees it.
     pub coupling: Vec<RankOne>,
-    /// Penalty energy stored in the gaps [J].
+    /// Penalty energy stored in the gaps (J).
     pub energy: f64,
-    /// Friction dissipation rate [W].
+    /// Friction dissipation rate (W).
     pub dissipation_rate: f64,
 }
 
@@ -47,21 +47,21 @@ pub(super) struct TermsInput<'a, const D: usize> {
     pub method: &'a dyn Method,
     /// The obstacles at t1.
     pub obstacles_t1: &'a [Obstacle<D>],
-    /// Predicted end positions (eq 22) [m].
+    /// Predicted end positions (eq 22) (m).
     pub x_gap: &'a [SVector<f64, D>],
-    /// Start and end velocities [m/s].
+    /// Start and end velocities (m/s).
     pub v0: &'a [f64],
-    /// End velocities [m/s].
+    /// End velocities (m/s).
     pub v1: &'a [f64],
-    /// The step [s].
+    /// The step (s).
     pub time_step: f64,
     /// Each boundary node's face shares (area, outward normal).
     pub areas: &'a [Vec<(f64, SVector<f64, D>)>],
     /// The method's outer variables.
     pub vars: &'a OuterVariables,
-    /// The Coulomb thresholds (normal forces) of the friction fixed point [N].
+    /// The Coulomb thresholds (normal forces) of the friction fixed point (N).
     pub friction_normals: &'a BTreeMap<ContactKey, f64>,
-    /// The elastic slips of the return-map laws at the start of the step [m].
+    /// The elastic slips of the return-map laws at the start of the step (m).
     pub friction_anchors: &'a BTreeMap<ContactKey, SVector<f64, D>>,
     /// The diagonal of the contact-free iteration matrix.
     pub diagonal: &'a [f64],
@@ -94,7 +94,7 @@ where
             .unwrap_or(self.model.contact.friction)
     }
 
-    /// Each boundary node's shares of the surface [m^2] at positions `x`, with the outward
+    /// Each boundary node's shares of the surface (m^2) at positions `x`, with the outward
     /// normal of the face each share comes from (length x unit thickness in plane kinematics,
     /// `2 pi r` x length in axisymmetric ones).
     pub(super) fn tributary_areas(

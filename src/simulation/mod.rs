@@ -48,7 +48,7 @@ use crate::mesh::Mesh;
 use crate::solver::FillOrdering;
 use crate::time::{Beta, SpaceTimeScheme};
 
-/// Energies and works of the whole system [J] (per unit thickness in plane kinematics, over the
+/// Energies and works of the whole system (J) (per unit thickness in plane kinematics, over the
 /// whole revolution in axisymmetric ones).
 #[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
 pub struct Energies {
@@ -76,9 +76,9 @@ impl Energies {
 pub struct StepReport {
     /// Step number (1-based).
     pub step: usize,
-    /// Time at the end of the step [s].
+    /// Time at the end of the step (s).
     pub time: f64,
-    /// The step size used [s].
+    /// The step size used (s).
     pub time_step: f64,
     /// Newton plus contact-set iterations (linear solves).
     pub iterations: usize,
@@ -86,15 +86,15 @@ pub struct StepReport {
     pub residual: f64,
     /// Energies at the end of the step.
     pub energies: Energies,
-    /// Largest penetration at the end of the step [m].
+    /// Largest penetration at the end of the step (m).
     pub max_penetration: f64,
     /// Active contacts at the end of the step.
     pub active_contacts: usize,
-    /// Force that each body's constraints exert on it during the step [N], by body.
+    /// Force that each body's constraints exert on it during the step (N), by body.
     pub reactions: Vec<Vec<f64>>,
-    /// Force that each obstacle exerts on the bodies during the step [N], by obstacle.
+    /// Force that each obstacle exerts on the bodies during the step (N), by obstacle.
     pub contact_forces: Vec<Vec<f64>>,
-    /// Slave points in contact at the end of the step, with their gap [m] and normal force [N]
+    /// Slave points in contact at the end of the step, with their gap (m) and normal force (N)
     /// (global node, gap, force).
     pub contacts: Vec<(usize, f64, f64)>,
     /// Times the step was cut in two (no convergence, or a cell turned inside out).
@@ -191,7 +191,7 @@ where
         self
     }
 
-    /// Time step h [s].
+    /// Time step h (s).
     pub fn time_step(mut self, h: f64) -> Self {
         self.settings.time_step = h;
         self
@@ -702,12 +702,12 @@ where
         self.caches.detector.as_ref()
     }
 
-    /// The mass matrix [kg].
+    /// The mass matrix (kg).
     pub fn mass_matrix(&self) -> SymmetricMatrix<'_> {
         SymmetricMatrix::of(&self.matrices.mass)
     }
 
-    /// The stiffness matrix on the reference configuration [N/m].
+    /// The stiffness matrix on the reference configuration (N/m).
     pub fn stiffness_matrix(&self) -> SymmetricMatrix<'_> {
         SymmetricMatrix::of(&self.matrices.stiffness)
     }
@@ -725,7 +725,7 @@ where
     }
 
     /// The stored internal energy at displacements `u` with the material history `history`
-    /// [J]: what [`Self::energies`] reports, so that other accounts (the end-of-step
+    /// (J): what [`Self::energies`] reports, so that other accounts (the end-of-step
     /// projection's) use the same matrices.
     pub(super) fn internal_energy(&self, u: &[f64], history: &[f64]) -> f64 {
         if self.general_path {
@@ -767,13 +767,13 @@ where
             + self.state.dissipated_energy.abs()
     }
 
-    /// Energy at t = 0 [J].
+    /// Energy at t = 0 (J).
     pub fn initial_energy(&self) -> f64 {
         self.state.reference_energy
     }
 
     /// Internal forces of displacements `u` (flat, D per node) integrated from the element
-    /// stresses [N].
+    /// stresses (N).
     pub fn internal_forces(&self, u: &[f64]) -> Vec<f64> {
         self.integrate_at(u, &self.state.material_history).forces
     }
@@ -800,7 +800,7 @@ where
         self.general_path
     }
 
-    /// Reference (undeformed) node positions, bodies in order [m].
+    /// Reference (undeformed) node positions, bodies in order (m).
     pub fn reference_positions(&self) -> &[SVector<f64, D>] {
         &self.reference
     }

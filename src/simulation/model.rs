@@ -25,7 +25,7 @@ pub enum MassKind {
 /// Global parameters of a simulation. Units are SI.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Settings<const D: usize> {
-    /// Time step h [s], > 0.
+    /// Time step h (s), > 0.
     pub time_step: f64,
     /// alpha and beta of the space-time scheme.
     pub scheme: SpaceTimeScheme,
@@ -71,7 +71,7 @@ where
 pub struct Constraint {
     /// Node indices in the body's mesh.
     pub nodes: Vec<usize>,
-    /// One entry per component; `None` leaves the component free [m/s].
+    /// One entry per component; `None` leaves the component free (m/s).
     pub velocity: Vec<Option<f64>>,
 }
 
@@ -81,9 +81,9 @@ pub struct Constraint {
 /// rigid motion), stiffness-proportional damping on fast ones.
 #[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
 pub struct RayleighDamping {
-    /// Mass-proportional coefficient [1/s].
+    /// Mass-proportional coefficient (1/s).
     pub mass: f64,
-    /// Stiffness-proportional coefficient [s].
+    /// Stiffness-proportional coefficient (s).
     pub stiffness: f64,
 }
 
@@ -95,7 +95,7 @@ impl RayleighDamping {
     };
 
     /// The coefficients that give the damping ratio `ratio` at the two circular frequencies
-    /// `omega_1` and `omega_2` [rad/s] (the usual way to choose them).
+    /// `omega_1` and `omega_2` (rad/s) (the usual way to choose them).
     pub fn from_ratio(ratio: f64, omega_1: f64, omega_2: f64) -> Self {
         let mass = 2.0 * ratio * omega_1 * omega_2 / (omega_1 + omega_2);
         RayleighDamping {
@@ -115,13 +115,13 @@ impl RayleighDamping {
 pub struct Body<const D: usize> {
     /// Unique name.
     pub name: String,
-    /// Mesh in the reference configuration [m].
+    /// Mesh in the reference configuration (m).
     pub mesh: Mesh<D>,
     /// Constitutive law.
     pub material: Material,
-    /// Initial velocity of every node [m/s].
+    /// Initial velocity of every node (m/s).
     pub initial_velocity: SVector<f64, D>,
-    /// Initial angular velocity about the centre of mass [rad/s]: 1 component in 2D, 3 in 3D.
+    /// Initial angular velocity about the centre of mass (rad/s): 1 component in 2D, 3 in 3D.
     pub initial_angular_velocity: Vec<f64>,
     /// Prescribed velocity components.
     pub constraints: Vec<Constraint>,
@@ -161,19 +161,19 @@ where
         self
     }
 
-    /// Sets Rayleigh damping `C = mass * M + stiffness * K` (mass [1/s], stiffness [s]).
+    /// Sets Rayleigh damping `C = mass * M + stiffness * K` (mass (1/s), stiffness (s)).
     pub fn with_damping(mut self, mass: f64, stiffness: f64) -> Self {
         self.damping = RayleighDamping { mass, stiffness };
         self
     }
 
-    /// Sets the initial velocity [m/s].
+    /// Sets the initial velocity (m/s).
     pub fn with_velocity(mut self, v: SVector<f64, D>) -> Self {
         self.initial_velocity = v;
         self
     }
 
-    /// Sets the initial angular velocity [rad/s] (1 component in 2D, 3 in 3D).
+    /// Sets the initial angular velocity (rad/s) (1 component in 2D, 3 in 3D).
     pub fn with_angular_velocity(mut self, omega: &[f64]) -> Self {
         self.initial_angular_velocity = omega.to_vec();
         self

@@ -27,7 +27,7 @@ pub struct Overlap {
     pub other: String,
     /// Nodes inside.
     pub nodes: usize,
-    /// The deepest of them [m] (-gap).
+    /// The deepest of them (m; -gap).
     pub depth: f64,
     /// Whether the other is a polyline or trimesh obstacle (whose solid side is set by the
     /// order of each facet's vertices).
@@ -130,7 +130,7 @@ where
             .collect()
     }
 
-    /// The largest penetration (-gap) in the current configuration [m] (0 when none): what
+    /// The largest penetration (-gap) in the current configuration (m; 0 when none): what
     /// history.csv's `max_penetration` reports at t = 0.
     pub fn current_penetration(&self) -> f64 {
         match self.caches.detector.as_ref() {

@@ -50,25 +50,25 @@ const COUPLED_SOLVE: bool = false;
 pub(super) struct StepStart<const D: usize> {
     /// Step number (1-based).
     pub step: usize,
-    /// Time at the start [s].
+    /// Time at the start (s).
     pub t0: f64,
-    /// Step size [s].
+    /// Step size (s).
     pub h: f64,
     /// Displacements and velocities at t0.
     pub u0: Vec<f64>,
-    /// Velocities at t0 [m/s].
+    /// Velocities at t0 (m/s).
     pub v0: Vec<f64>,
-    /// The displacement gaps are measured on at t0 [m] (see `GapDisplacement`).
+    /// The displacement gaps are measured on at t0 (m; see `GapDisplacement`).
     pub gap_u0: Vec<f64>,
-    /// External forces at t_alpha [N].
+    /// External forces at t_alpha (N).
     pub f_ext: Vec<f64>,
-    /// Positions at t0 that gaps are measured on [m].
+    /// Positions at t0 that gaps are measured on (m).
     pub x0: Vec<SVector<f64, D>>,
     /// The obstacles at t0 and t1.
     pub obstacles_t0: Vec<Obstacle<D>>,
     /// The obstacles at t1.
     pub obstacles_t1: Vec<Obstacle<D>>,
-    /// Obstacle translations at t1 (flat) [m].
+    /// Obstacle translations at t1 (flat) (m).
     pub translations_t1: Vec<f64>,
     /// Obstacle rotations at t1 (stored values, see `State::obstacle_rotations`).
     pub rotations_t1: Vec<f64>,
@@ -78,9 +78,9 @@ pub(super) struct StepStart<const D: usize> {
 
 /// What Newton and the outer loop converged to.
 pub(super) struct Solution<const D: usize> {
-    /// End velocities [m/s].
+    /// End velocities (m/s).
     pub v1: Vec<f64>,
-    /// The residual at the solution (its prescribed rows are the reactions) [N].
+    /// The residual at the solution (its prescribed rows are the reactions) (N).
     pub residual: Vec<f64>,
     /// The contact terms at the solution.
     pub terms: ContactTerms<D>,
@@ -95,7 +95,7 @@ pub(super) struct Solution<const D: usize> {
     /// The material history at the end of the step (the law's at the solution).
     pub material_history: Vec<f64>,
     /// The damping forces the element kernel added at the solution (damped
-    /// updated-Lagrangian bodies; empty otherwise) [N].
+    /// updated-Lagrangian bodies; empty otherwise) (N).
     pub kernel_damping_forces: Vec<f64>,
 }
 

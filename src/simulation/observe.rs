@@ -14,19 +14,19 @@ pub struct ContactRecord<const D: usize> {
     pub slave: usize,
     /// Index of the obstacle, or `None` for a facet of a body.
     pub obstacle: Option<usize>,
-    /// Predicted end position of the slave point (eq 22) [m].
+    /// Predicted end position of the slave point (eq 22) (m).
     pub position: SVector<f64, D>,
-    /// Closest point on the master [m].
+    /// Closest point on the master (m).
     pub master_point: SVector<f64, D>,
     /// Unit outward normal of the master.
     pub normal: SVector<f64, D>,
-    /// Signed gap [m] (negative: penetration).
+    /// Signed gap (m) (negative: penetration).
     pub gap: f64,
-    /// Compressive normal force on the slave [N].
+    /// Compressive normal force on the slave (N).
     pub normal_force: f64,
-    /// Friction force on the slave [N].
+    /// Friction force on the slave (N).
     pub friction_force: SVector<f64, D>,
-    /// Tangential relative velocity (slip rate) [m/s].
+    /// Tangential relative velocity (slip rate) (m/s).
     pub slip_velocity: SVector<f64, D>,
     /// Whether the point carries force (in the active set).
     pub active: bool,
@@ -39,19 +39,19 @@ pub struct IterationInfo<'a, const D: usize> {
     pub step: usize,
     /// Iteration within the step (1-based).
     pub iteration: usize,
-    /// Time at the start of the step [s].
+    /// Time at the start of the step (s).
     pub time: f64,
-    /// Step size [s].
+    /// Step size (s).
     pub time_step: f64,
-    /// Norm of the residual before this iteration's solve [N].
+    /// Norm of the residual before this iteration's solve (N).
     pub residual_norm: f64,
     /// Relative residual (residual over the largest force term).
     pub relative_residual: f64,
-    /// Norm of the velocity increment of this iteration [m/s].
+    /// Norm of the velocity increment of this iteration (m/s).
     pub increment_norm: f64,
-    /// The current estimate of the end-of-step velocities (flat, D per node) [m/s].
+    /// The current estimate of the end-of-step velocities (flat, D per node) (m/s).
     pub end_velocity: &'a [f64],
-    /// The predicted end-of-step node positions (eq 22: `x0 + h (v0 + v1) / 2`) [m].
+    /// The predicted end-of-step node positions (eq 22: `x0 + h (v0 + v1) / 2`) (m).
     pub end_positions: &'a [SVector<f64, D>],
     /// Number of broad-phase candidate pairs.
     pub candidates: usize,

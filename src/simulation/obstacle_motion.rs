@@ -167,7 +167,7 @@ where
         )
     }
 
-    /// The obstacles where a step of `h` [s] from the current state puts them, at the
+    /// The obstacles where a step of `h` (s) from the current state puts them, at the
     /// velocities in the state (a schedule sets those at the start of each step, so a
     /// recorder's `step_start` hook sees the step's own).
     pub fn obstacles_after(&self, h: f64) -> Vec<Obstacle<D>> {
@@ -233,12 +233,12 @@ where
             .collect()
     }
 
-    /// The velocity of obstacle `k`'s pivot [m/s].
+    /// The velocity of obstacle `k`'s pivot (m/s).
     pub(super) fn obstacle_velocity(&self, k: usize) -> SVector<f64, D> {
         SVector::from_column_slice(&self.state.obstacle_velocities[k * D..k * D + D])
     }
 
-    /// The velocity of obstacle `k`'s surface at `x` [m/s], `posed` being the obstacle at the
+    /// The velocity of obstacle `k`'s surface at `x` (m/s), `posed` being the obstacle at the
     /// end of the step: `v + omega x (x - pivot)` (exactly `v` when it does not turn).
     pub(super) fn surface_velocity(
         &self,
@@ -273,7 +273,7 @@ where
     }
 
     /// The work over a step of `h` of forces (obstacle, point, force) that turning obstacles
-    /// apply, through their turning: `h f . (omega x r)`, summed [J]. The pivot's share,
+    /// apply, through their turning: `h f . (omega x r)`, summed (J). The pivot's share,
     /// `h F . v` on each obstacle's total force, is booked apart.
     pub(super) fn spin_work(
         &self,

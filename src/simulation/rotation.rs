@@ -8,7 +8,7 @@ use super::{BodyId, Simulation};
 use crate::dim::{Dim, SpatialDim};
 use crate::error::Result;
 
-/// The rotation past which a body of a small-strain law is reported [rad] (5 degrees: the
+/// The rotation past which a body of a small-strain law is reported (rad) (5 degrees: the
 /// strain a rigid rotation theta fakes is about theta^2 / 2 = 0.4 %).
 pub const SMALL_STRAIN_ROTATION_LIMIT: f64 = 5.0 * std::f64::consts::PI / 180.0;
 
@@ -16,7 +16,7 @@ impl<const D: usize> Simulation<D>
 where
     Dim<D>: SpatialDim<D>,
 {
-    /// The angle [rad] of the rotation that best maps the body's reference configuration onto
+    /// The angle (rad) of the rotation that best maps the body's reference configuration onto
     /// its current one (the polar factor of `sum (x - x_mean)(X - X_mean)^T`).
     pub fn body_rotation(&self, body: BodyId) -> Result<f64> {
         Ok(self.rotation_of_body(self.body_index(body)?))
@@ -59,7 +59,7 @@ where
     }
 
     /// The bodies of small-strain laws that have turned past
-    /// [`SMALL_STRAIN_ROTATION_LIMIT`], with their rotation [rad].
+    /// [`SMALL_STRAIN_ROTATION_LIMIT`], with their rotation (rad).
     pub fn small_strain_rotations(&self) -> Vec<(BodyId, f64)> {
         (0..self.model.bodies.len())
             .filter(|&b| !self.integration[b].law.updated_lagrangian())

@@ -14,51 +14,51 @@ pub use crate::contact::MasterId;
 pub struct State {
     /// Steps taken.
     pub step: usize,
-    /// Current time [s].
+    /// Current time (s).
     pub time: f64,
-    /// Nodal displacements from the reference configuration [m], D per node, bodies in order.
+    /// Nodal displacements from the reference configuration (m), D per node, bodies in order.
     pub displacement: Vec<f64>,
-    /// Nodal velocities [m/s].
+    /// Nodal velocities (m/s).
     pub velocity: Vec<f64>,
-    /// The displacement contact gaps are measured on [m] (with
+    /// The displacement contact gaps are measured on (m) (with
     /// [`crate::contact::GapDisplacement::Trapezoid`]): the running sum of eq 22,
     /// `h (v0 + v1) / 2` per step, moved with the configuration by end-of-step projections.
     /// It differs from `displacement` by the scheme's `h (beta - 1/2) (v - v(0))` per node.
     #[serde(default)]
     pub gap_displacement: Vec<f64>,
-    /// Cumulative external work [J].
+    /// Cumulative external work (J).
     pub external_work: f64,
-    /// Cumulative dissipation [J].
+    /// Cumulative dissipation (J).
     pub dissipated_energy: f64,
-    /// Constant external nodal forces set through the API [N].
+    /// Constant external nodal forces set through the API (N).
     pub loads: Vec<f64>,
-    /// Displacement of each obstacle since t = 0 [m], D per obstacle.
+    /// Displacement of each obstacle since t = 0 (m), D per obstacle.
     pub obstacle_translations: Vec<f64>,
-    /// Velocity of each obstacle (of its pivot) [m/s], D per obstacle (changed between steps
+    /// Velocity of each obstacle (of its pivot) (m/s), D per obstacle (changed between steps
     /// through the API; a schedule's mean over the step).
     pub obstacle_velocities: Vec<f64>,
-    /// Rotation of each obstacle about its pivot since t = 0: the angle [rad] in 2D, the
+    /// Rotation of each obstacle about its pivot since t = 0: the angle (rad) in 2D, the
     /// rotation matrix's 9 entries (column-major) in 3D, per obstacle (empty in states from
     /// before rotating obstacles: none turned).
     #[serde(default)]
     pub obstacle_rotations: Vec<f64>,
-    /// Angular velocity of each obstacle about its pivot [rad/s], 1 (2D) or 3 (3D) per
+    /// Angular velocity of each obstacle about its pivot (rad/s), 1 (2D) or 3 (3D) per
     /// obstacle (a schedule's turn over the step divided by the step; empty: none).
     #[serde(default)]
     pub obstacle_angular_velocities: Vec<f64>,
-    /// Energy stored in soft-way penalties at the end of the last step [J].
+    /// Energy stored in soft-way penalties at the end of the last step (J).
     pub contact_energy: f64,
     /// Augmented Lagrangian multipliers carried from step to step: (slave node, master,
-    /// contact pressure [Pa]), for the pairs closed at the end of the last step only.
+    /// contact pressure (Pa)), for the pairs closed at the end of the last step only.
     pub multipliers: Vec<(usize, MasterId, f64)>,
-    /// The normal forces that set the friction thresholds (slave node, master, force [N]),
+    /// The normal forces that set the friction thresholds (slave node, master, force (N)),
     /// carried from step to step as the start of the fixed point on the threshold.
     pub friction_normals: Vec<(usize, MasterId, f64)>,
-    /// The elastic slips of the friction return map (slave node, master, D components [m]):
+    /// The elastic slips of the friction return map (slave node, master, D components (m)):
     /// one per closed contact under a penalty method with Coulomb or Tresca friction, dropped
     /// when the contact opens.
     pub friction_anchors: Vec<(usize, MasterId, Vec<f64>)>,
-    /// The energy stability is measured against at t = 0 [J] (E(0)).
+    /// The energy stability is measured against at t = 0 (J) (E(0)).
     pub reference_energy: f64,
     /// Per-quadrature-point history of the materials that carry one, cell by cell.
     pub material_history: Vec<f64>,
@@ -96,7 +96,7 @@ pub struct ContactMemory {
 pub struct FactorRecord {
     /// Its id (the cache key).
     pub id: u64,
-    /// The step size of the contact-free part [s].
+    /// The step size of the contact-free part (s).
     pub time_step: f64,
     /// The contact entries on free unknowns (row, column, value; lower triangle).
     pub entries: Vec<(usize, usize, f64)>,

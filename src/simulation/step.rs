@@ -36,7 +36,7 @@ where
         self.advance(h, recorder)
     }
 
-    /// One step of size `h` [s] observed by `recorder`. A step whose Newton or contact
+    /// One step of size `h` (s) observed by `recorder`. A step whose Newton or contact
     /// iteration does not converge (or whose contact set cycles) is cut in halves, up to four
     /// times; on error the state is left as it was at the start of the step.
     pub fn advance(&mut self, h: f64, recorder: &mut dyn Recorder<D>) -> Result<StepReport> {
@@ -145,7 +145,7 @@ where
     }
 
     /// The energy that the time scheme conserves at the current state, for the configured
-    /// step [J]:
+    /// step (J):
     /// `Q = 1/2 v^T M v + U(u) + h/2 (alpha - beta) u^T K v + h^2/4 (alpha^2 - 2 alpha beta) v^T K v`.
     /// A step of a linear law with `beta = 1 - alpha` keeps it exactly, up to the work
     /// `f . (du + h/2 (alpha - beta) dv)` of constant external forces f; other `beta` scale

@@ -26,9 +26,9 @@ pub(crate) mod soft_way;
 /// The variables a method updates between Newton solves within one step.
 #[derive(Debug, Clone, Default)]
 pub(crate) struct OuterVariables {
-    /// Augmented Lagrangian: contact pressures [Pa], positive, of closed pairs only (carried
+    /// Augmented Lagrangian: contact pressures (Pa), positive, of closed pairs only (carried
     /// from step to step, dropped when the pair opens); implicit projection: the normal
-    /// forces [N] of the last solve on active points.
+    /// forces (N) of the last solve on active points.
     pub multipliers: BTreeMap<ContactKey, f64>,
     /// Implicit projection: the active set.
     pub active: BTreeSet<ContactKey>,
@@ -43,13 +43,13 @@ pub(crate) struct OuterVariables {
 pub(crate) struct NormalInput {
     /// The contact.
     pub key: ContactKey,
-    /// The eq 22 gap [m].
+    /// The eq 22 gap (m).
     pub gap: f64,
-    /// The relative normal end velocity [m/s].
+    /// The relative normal end velocity (m/s).
     pub normal_velocity: f64,
-    /// The slave's contact area [m^2].
+    /// The slave's contact area (m^2).
     pub area: f64,
-    /// The step [s].
+    /// The step (s).
     pub time_step: f64,
     /// The largest diagonal entry of the slave's rows of the iteration matrix.
     pub diagonal: f64,
@@ -58,11 +58,11 @@ pub(crate) struct NormalInput {
 /// A pair's normal force and the stiffness of its law.
 #[derive(Debug, Clone, Copy, Default)]
 pub(crate) struct NormalLaw {
-    /// Compressive normal force on the slave [N].
+    /// Compressive normal force on the slave (N).
     pub force: f64,
-    /// `d force / d (n . w1)`, w1 the relative end velocity [N s/m].
+    /// `d force / d (n . w1)`, w1 the relative end velocity (N s/m).
     pub stiffness: f64,
-    /// Contact pressure [Pa] where the force comes from a penalty on the gap (the
+    /// Contact pressure (Pa) where the force comes from a penalty on the gap (the
     /// geometric tangent's factor), else 0.
     pub pressure: f64,
 }
@@ -74,21 +74,21 @@ pub(crate) struct PairOutcome<const D: usize> {
     pub key: ContactKey,
     /// The master's outward normal.
     pub normal: SVector<f64, D>,
-    /// The eq 22 gap [m].
+    /// The eq 22 gap (m).
     pub gap: f64,
-    /// Normal force on the slave [N] (negative: tension, implicit projection).
+    /// Normal force on the slave (N; negative: tension, implicit projection).
     pub normal_force: f64,
-    /// Friction force on the slave [N].
+    /// Friction force on the slave (N).
     pub friction: SVector<f64, D>,
-    /// Mean tangential relative velocity over the step [m/s].
+    /// Mean tangential relative velocity over the step (m/s).
     pub slip: SVector<f64, D>,
-    /// The master point [m].
+    /// The master point (m).
     pub master_point: SVector<f64, D>,
     /// The obstacle, for obstacle masters.
     pub obstacle: Option<usize>,
-    /// The relative normal end velocity [m/s].
+    /// The relative normal end velocity (m/s).
     pub normal_velocity: f64,
-    /// The elastic slip after the step [m] (return-map laws on closed contacts).
+    /// The elastic slip after the step (m; return-map laws on closed contacts).
     pub anchor: Option<SVector<f64, D>>,
 }
 
@@ -97,11 +97,11 @@ pub(crate) struct PairOutcome<const D: usize> {
 pub(crate) struct PairStatus {
     /// The contact.
     pub key: ContactKey,
-    /// The eq 22 gap [m].
+    /// The eq 22 gap (m).
     pub gap: f64,
-    /// Normal force on the slave [N] (negative: tension).
+    /// Normal force on the slave (N; negative: tension).
     pub normal_force: f64,
-    /// The relative normal end velocity [m/s].
+    /// The relative normal end velocity (m/s).
     pub normal_velocity: f64,
 }
 
@@ -196,7 +196,7 @@ pub(crate) trait Method: Sync {
         false
     }
 
-    /// The return map's tangential stiffness [N/m] for a pair (default: the normal penalty
+    /// The return map's tangential stiffness (N/m) for a pair (default: the normal penalty
     /// times the contact area, so that the elastic slip is at most mu times the penetration).
     fn tangential_stiffness(&self, input: &NormalInput, settings: &ContactSettings) -> f64 {
         settings.penalty * input.area

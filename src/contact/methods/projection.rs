@@ -20,17 +20,17 @@ pub(crate) struct ProjectionContext<'a, const D: usize> {
     pub facet_body: &'a [usize],
     /// The nodes of every surface facet.
     pub facets: &'a [[usize; D]],
-    /// Lumped nodal masses [kg].
+    /// Lumped nodal masses (kg).
     pub nodal_mass: &'a [f64],
     /// Prescribed velocity components (they do not move).
     pub prescribed: &'a [Option<f64>],
-    /// The velocity of obstacle k's surface at a point [m/s].
+    /// The velocity of obstacle k's surface at a point (m/s).
     pub obstacle_velocity: &'a dyn Fn(usize, &SVector<f64, D>) -> SVector<f64, D>,
-    /// The step [s].
+    /// The step (s).
     pub time_step: f64,
 }
 
-/// An impulse on an obstacle as a force over the step: (obstacle, master point [m], force [N]).
+/// An impulse on an obstacle as a force over the step: (obstacle, master point (m), force (N)).
 pub(crate) type Applied<const D: usize> = (usize, SVector<f64, D>, SVector<f64, D>);
 
 /// Projects the points of `pairs` (found in the stored end configuration) that the rule names:

@@ -9,7 +9,7 @@ use crate::contact::ContactSettings;
 /// The soft way.
 pub(crate) struct SoftWay;
 
-/// The penalty law around a multiplier `lambda` [Pa]: `p = max(0, lambda - zeta g)`.
+/// The penalty law around a multiplier `lambda` (Pa): `p = max(0, lambda - zeta g)`.
 pub(crate) fn penalty_law(lambda: f64, input: &NormalInput, zeta: f64) -> NormalLaw {
     let p = lambda - zeta * input.gap;
     if p > 0.0 {

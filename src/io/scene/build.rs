@@ -552,7 +552,7 @@ impl LoadedScene {
         Ok(Constraint { nodes, velocity })
     }
 
-    /// An angular velocity: a number in 2D, a vector `[wx, wy, wz]` in 3D, finite [rad/s].
+    /// An angular velocity: a number in 2D, a vector `[wx, wy, wz]` in 3D, finite (rad/s).
     pub(super) fn angular<const D: usize>(&self, key: &str, w: &AngularSpec) -> Result<Vec<f64>>
     where
         Dim<D>: SpatialDim<D>,

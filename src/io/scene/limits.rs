@@ -16,7 +16,7 @@
 /// The largest number of steps a scene may ask for (end_time / time_step).
 pub const MAX_STEPS: f64 = 1e8;
 
-/// The physical memory assumed where it cannot be read [bytes].
+/// The physical memory assumed where it cannot be read (bytes).
 pub const DEFAULT_MEMORY_LIMIT: f64 = 16.0 * 1024.0 * 1024.0 * 1024.0;
 
 /// The steps `run` takes from 0 to `end_time` with `time_step` (the last one may be
@@ -35,12 +35,12 @@ fn bytes_per_unknown(d: usize) -> f64 {
     3.0 * 16.0 * lower
 }
 
-/// A lower bound on the memory [bytes] of a run with `unknowns` unknowns in dimension `d`.
+/// A lower bound on the memory (bytes) of a run with `unknowns` unknowns in dimension `d`.
 pub fn memory_lower_bound(unknowns: f64, d: usize) -> f64 {
     unknowns * bytes_per_unknown(d)
 }
 
-/// The memory a run may use [bytes]: the machine's physical memory (Linux /proc/meminfo),
+/// The memory a run may use (bytes): the machine's physical memory (Linux /proc/meminfo),
 /// else [`DEFAULT_MEMORY_LIMIT`].
 pub fn memory_limit() -> f64 {
     std::fs::read_to_string("/proc/meminfo")

@@ -191,9 +191,9 @@ impl LoadedScene {
 /// Output options.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct OutputOptions {
-    /// [s]; 0 = every step.
+    /// (s); 0 = every step.
     pub history_interval: f64,
-    /// [s]; 0 = none.
+    /// (s); 0 = none.
     pub vtk_interval: f64,
 }
 
@@ -216,7 +216,7 @@ where
 {
     /// Global settings.
     pub settings: Settings<D>,
-    /// End time [s].
+    /// End time (s).
     pub end_time: f64,
     /// Bodies.
     pub bodies: Vec<Body<D>>,

@@ -68,9 +68,9 @@ pub struct SimulationSection {
     /// 2D only.
     #[serde(default)]
     pub kinematics: Option<String>,
-    /// h [s].
+    /// h (s).
     pub time_step: f64,
-    /// [s].
+    /// (s).
     pub end_time: f64,
     /// Dirac point.
     #[serde(default = "default_alpha")]
@@ -78,7 +78,7 @@ pub struct SimulationSection {
     /// Position update weight.
     #[serde(default)]
     pub beta: BetaSpec,
-    /// [m/s^2].
+    /// (m/s^2).
     #[serde(default)]
     pub gravity: Option<Vec<f64>>,
     /// Newton + contact iterations per step.
@@ -108,13 +108,13 @@ pub enum FrictionSpec {
     Coulomb {
         /// mu.
         coefficient: f64,
-        /// Stick slip-velocity scale [m/s].
+        /// Stick slip-velocity scale (m/s).
         #[serde(default)]
         regularization: Option<f64>,
     },
     /// Constant limit.
     Tresca {
-        /// Limit shear stress [Pa].
+        /// Limit shear stress (Pa).
         limit: f64,
     },
     /// F_t = -a |v_t|^(p-1) v_t.
@@ -123,7 +123,7 @@ pub enum FrictionSpec {
         coefficient: f64,
         /// p.
         exponent: f64,
-        /// v_reg [m/s].
+        /// v_reg (m/s).
         #[serde(default)]
         regularization: Option<f64>,
     },
@@ -136,13 +136,13 @@ pub struct ContactSection {
     /// Method name.
     #[serde(default = "default_method")]
     pub method: String,
-    /// zeta [Pa/m].
+    /// zeta (Pa/m).
     #[serde(default)]
     pub penalty: Option<f64>,
     /// Self-contact on.
     #[serde(default)]
     pub self_contact: bool,
-    /// [m].
+    /// (m).
     #[serde(default = "default_gap_tolerance")]
     pub gap_tolerance: f64,
     /// Default friction law.
@@ -188,13 +188,13 @@ pub struct MeshSpec {
     pub element: Option<String>,
     /// annulus.
     pub center: Option<Vec<f64>>,
-    /// annulus [m].
+    /// annulus (m).
     pub inner_radius: Option<f64>,
-    /// annulus [m].
+    /// annulus (m).
     pub outer_radius: Option<f64>,
-    /// polygon [m].
+    /// polygon (m).
     pub vertices: Option<Vec<Vec<f64>>>,
-    /// 3D annulus and polygon: extrusion length along z [m].
+    /// 3D annulus and polygon: extrusion length along z (m).
     pub length: Option<f64>,
 }
 
@@ -205,20 +205,20 @@ pub struct MeshSpec {
 pub enum MaterialSpec {
     /// Small-strain isotropic elasticity.
     LinearElastic {
-        /// E [Pa].
+        /// E (Pa).
         youngs_modulus: f64,
         /// nu.
         poissons_ratio: f64,
-        /// rho [kg/m^3].
+        /// rho (kg/m^3).
         density: f64,
     },
     /// Corotational hypoelasticity (large rotations).
     Hypoelastic {
-        /// E [Pa].
+        /// E (Pa).
         youngs_modulus: f64,
         /// nu.
         poissons_ratio: f64,
-        /// rho [kg/m^3].
+        /// rho (kg/m^3).
         density: f64,
         /// hughes_winget | paper_series.
         #[serde(default)]
@@ -226,15 +226,15 @@ pub enum MaterialSpec {
     },
     /// Norton-Hoff viscoplasticity.
     NortonHoff {
-        /// K [Pa s^m].
+        /// K (Pa s^m).
         consistency: f64,
         /// m.
         exponent: f64,
-        /// rho [kg/m^3].
+        /// rho (kg/m^3).
         density: f64,
-        /// Volumetric penalty [Pa s].
+        /// Volumetric penalty (Pa s).
         bulk_penalty: f64,
-        /// Regularisation of the equivalent strain rate [1/s].
+        /// Regularisation of the equivalent strain rate (1/s).
         #[serde(default)]
         rate_regularization: Option<f64>,
     },
@@ -266,9 +266,9 @@ pub struct NamedComponents {
 #[derive(Debug, Clone, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct RegionSpec {
-    /// Box corner [m].
+    /// Box corner (m).
     pub min: Option<Vec<f64>>,
-    /// Box corner [m].
+    /// Box corner (m).
     pub max: Option<Vec<f64>>,
     /// A Gmsh physical group name.
     pub group: Option<String>,
@@ -280,7 +280,7 @@ pub struct RegionSpec {
 pub struct ConstraintSection {
     /// Which nodes.
     pub region: RegionSpec,
-    /// Prescribed components [m/s].
+    /// Prescribed components (m/s).
     pub velocity: ComponentsSpec,
 }
 
@@ -288,9 +288,9 @@ pub struct ConstraintSection {
 #[derive(Debug, Clone, Deserialize)]
 #[serde(untagged)]
 pub enum AngularSpec {
-    /// 2D [rad/s].
+    /// 2D (rad/s).
     Scalar(f64),
-    /// 3D [rad/s].
+    /// 3D (rad/s).
     Vector(Vec<f64>),
 }
 
@@ -304,10 +304,10 @@ pub struct BodySection {
     pub mesh: MeshSpec,
     /// Law.
     pub material: MaterialSpec,
-    /// [m/s].
+    /// (m/s).
     #[serde(default)]
     pub initial_velocity: Option<Vec<f64>>,
-    /// [rad/s].
+    /// (rad/s).
     #[serde(default)]
     pub initial_angular_velocity: Option<AngularSpec>,
     /// Prescribed velocities.
@@ -322,10 +322,10 @@ pub struct BodySection {
 #[derive(Debug, Clone, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct DampingSpec {
-    /// [1/s].
+    /// (1/s).
     #[serde(default)]
     pub mass: f64,
-    /// [s].
+    /// (s).
     #[serde(default)]
     pub stiffness: f64,
 }
@@ -337,28 +337,28 @@ pub struct DampingSpec {
 pub enum ShapeSpec {
     /// Half-space.
     Halfspace {
-        /// [m].
+        /// (m).
         point: Vec<f64>,
         /// Outward normal.
         normal: Vec<f64>,
     },
     /// Axis-aligned box.
     Box {
-        /// [m].
+        /// (m).
         center: Vec<f64>,
-        /// [m].
+        /// (m).
         half_extents: Vec<f64>,
     },
     /// Ball / disc.
     Ball {
-        /// [m].
+        /// (m).
         center: Vec<f64>,
-        /// [m].
+        /// (m).
         radius: f64,
     },
     /// 2D polyline.
     Polyline {
-        /// [m].
+        /// (m).
         #[serde(default)]
         vertices: Option<Vec<Vec<f64>>>,
         /// Segments.
@@ -370,7 +370,7 @@ pub enum ShapeSpec {
     },
     /// 3D triangle mesh.
     Trimesh {
-        /// [m].
+        /// (m).
         #[serde(default)]
         vertices: Option<Vec<Vec<f64>>>,
         /// Triangles.
@@ -390,13 +390,13 @@ pub struct ObstacleSection {
     pub name: String,
     /// Shape.
     pub shape: ShapeSpec,
-    /// [m/s].
+    /// (m/s).
     #[serde(default)]
     pub velocity: Option<Vec<f64>>,
     /// A piecewise-constant motion instead of `velocity`.
     #[serde(default)]
     pub motion: Option<Vec<MotionSpec>>,
-    /// The point rotations turn about [m].
+    /// The point rotations turn about (m).
     #[serde(default)]
     pub pivot: Option<Vec<f64>>,
     /// Overrides `[contact].friction`.
@@ -408,11 +408,11 @@ pub struct ObstacleSection {
 #[derive(Debug, Clone, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct MotionSpec {
-    /// End of the piece [s].
+    /// End of the piece (s).
     pub until: f64,
-    /// [m/s].
+    /// (m/s).
     pub velocity: Vec<f64>,
-    /// [rad/s] about the pivot.
+    /// (rad/s) about the pivot.
     #[serde(default)]
     pub angular_velocity: Option<AngularSpec>,
 }
@@ -425,7 +425,7 @@ pub struct ProbeSection {
     pub name: String,
     /// Body name.
     pub body: String,
-    /// [m]; the nearest node of the undeformed mesh is recorded.
+    /// (m); the nearest node of the undeformed mesh is recorded.
     pub point: Vec<f64>,
 }
 

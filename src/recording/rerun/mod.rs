@@ -18,17 +18,17 @@
 //! | `obstacles/<name>` | first step (fixed obstacles) or every step (moving ones) | the obstacle's shape in its pose (translated and turned) |
 //! | `contacts/candidates` | every iteration | every contact record: slave point and a segment to its master point |
 //! | `contacts/active` | every iteration | slave points in the active set |
-//! | `contacts/gap` | every iteration | slave points coloured by their gap [m] (red: penetration, blue: open) |
+//! | `contacts/gap` | every iteration | slave points coloured by their gap (m; red: penetration, blue: open) |
 //! | `contacts/normal_force` | every iteration | normal force arrows, labelled in N |
 //! | `contacts/friction_force` | every iteration | friction force arrows |
-//! | `contacts/slip` | every iteration | slip velocity times the step size [m] (the slip of the step) |
-//! | `solver/residual_norm` | every iteration | residual norm before the solve [N] |
+//! | `contacts/slip` | every iteration | slip velocity times the step size (m; the slip of the step) |
+//! | `solver/residual_norm` | every iteration | residual norm before the solve (N) |
 //! | `solver/relative_residual` | every iteration | the residual over the force scale (what the tolerance tests) |
-//! | `solver/increment_norm` | every iteration | velocity increment norm [m/s] |
+//! | `solver/increment_norm` | every iteration | velocity increment norm (m/s) |
 //! | `solver/active_set_size` | every iteration | number of active contacts |
 //! | `solver/candidates` | every iteration | broad-phase candidate pairs |
-//! | `energy/<kind>` | every step (and at t = 0) | kinetic, internal, contact, external_work, dissipated [J] |
-//! | `probes/<name>` | every step (and at t = 0) | displacement [m] and velocity [m/s] components of a probe node |
+//! | `energy/<kind>` | every step (and at t = 0) | kinetic, internal, contact, external_work, dissipated (J) |
+//! | `probes/<name>` | every step (and at t = 0) | displacement (m) and velocity (m/s) components of a probe node |
 //! | `log` | on events | contact status changes, step summaries, messages of the solver (step cuts) |
 //!
 //! Recording never changes the results: the recorder only reads the simulation. Log from the
@@ -77,10 +77,10 @@ pub const ENERGY_KINDS: [&str; 5] = [
 /// The field that colours the meshes.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum ColorField {
-    /// von Mises stress of the committed state (start of the step) [Pa], per cell.
+    /// von Mises stress of the committed state (start of the step) (Pa), per cell.
     #[default]
     VonMises,
-    /// Speed of the current end-of-step velocity estimate [m/s], per node.
+    /// Speed of the current end-of-step velocity estimate (m/s), per node.
     Speed,
 }
 
@@ -96,13 +96,13 @@ where
     bodies: Option<Vec<BodyDraw>>,
     obstacles: Vec<Obstacle<D>>,
     probes: Vec<ProbeDraw>,
-    /// von Mises stress of every cell of the committed state [Pa].
+    /// von Mises stress of every cell of the committed state (Pa).
     mises: Vec<f64>,
     /// Largest colour-field value seen so far (the top of the colour scale).
     field_max: f64,
-    /// Largest contact force seen so far [N] (scales the force arrows).
+    /// Largest contact force seen so far (N; scales the force arrows).
     force_max: f64,
-    /// Size of the scene (diagonal of the reference bounding box) [m].
+    /// Size of the scene (diagonal of the reference bounding box) (m).
     scene_size: f64,
     /// Whether the previous iteration logged any contact record.
     had_contacts: bool,

@@ -4,7 +4,7 @@ use nalgebra::SVector;
 
 use crate::contact::ObstacleShape;
 
-/// 2D outline of an obstacle shape as line strips [m]; a half-space is drawn as a segment
+/// 2D outline of an obstacle shape as line strips (m); a half-space is drawn as a segment
 /// `4 size` long around the point of its boundary nearest the origin of its `point`.
 pub(super) fn shape_strips<const D: usize>(
     shape: &ObstacleShape<D>,
@@ -49,7 +49,7 @@ pub(super) fn shape_strips<const D: usize>(
     }
 }
 
-/// 3D surface of an obstacle shape: vertices [m] and triangles; a half-space is drawn as a
+/// 3D surface of an obstacle shape: vertices (m) and triangles; a half-space is drawn as a
 /// square of side `4 size` centred on its `point`.
 pub(super) fn shape_triangles<const D: usize>(
     shape: &ObstacleShape<D>,
