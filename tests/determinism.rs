@@ -1,0 +1,177 @@
+//! Results do not depend on the number of threads: every contact method with every friction
+//! law, and every material, give bit-identical states on one and two threads (parallel
+//! assembly and detection write per-cell and per-candidate chunks summed in a fixed order).
+#![cfg(feature = "parallel")]
+
+#[macro_use]
+mod common;
+
+use common::{block, vec_d};
+use softway::contact::ObstacleShape;
+use softway::dim::{Dim, SpatialDim};
+use softway::material::{Hypoelastic, NortonHoff, RotationUpdate};
+use softway::prelude::*;
+
+/// Two blocks sliding sideways on a floor and over each other (a moving block over a
+/// resting one): contact with obstacles and between bodies, friction slipping and sticking.
+fn scene<const D: usize>(
+    method: ContactMethod,
+    friction: FrictionLaw,
+    law: Material,
+) -> Simulation<D>
+where
+    Dim<D>: SpatialDim<D>,
+{
+    let lower: Mesh<D> = block([0.1, 0.05, 0.1], [3, 2, 3], false);
+    let mut upper: Mesh<D> = block([0.06, 0.04, 0.06], [2, 2, 2], true);
+    for p in &mut upper.nodes {
+        p[0] += 0.02;
+        p[D - 1] += if D == 2 { 0.051 } else { 0.0 };
+        if D == 3 {
+            p[1] += 0.02;
+            p[2] += 0.101;
+        }
+    }
+    let mut lower_mesh = lower;
+    for p in &mut lower_mesh.nodes {
+        p[D - 1] += 0.001;
+    }
+    let mut up = [0.0; 3];
+    up[D - 1] = 1.0;
+    let mut g = [0.0; 3];
+    g[D - 1] = -9.81;
+    Simulation::<D>::builder()
+        .time_step(2e-3)
+        .gravity(vec_d(g))
+        .body(Body::new("lower", lower_mesh, law).with_velocity(vec_d([0.2, 0.0, 0.0])))
+        .body(Body::new("upper", upper, law).with_velocity(vec_d([-0.3, 0.0, 0.0])))
+        .obstacle(Obstacle::new(
+            "floor",
+            ObstacleShape::Halfspace {
+                point: vec_d([0.0; 3]),
+                normal: vec_d(up),
+            },
+        ))
+        .contact(ContactSettings {
+            method,
+            penalty: 1e9,
+            friction,
+            ..Default::default()
+        })
+        .build()
+        .unwrap()
+}
+
+/// The state after 25 steps, or the error that stopped the run (a failure must be the same
+/// failure on any number of threads too).
+fn run<const D: usize>(
+    threads: usize,
+    method: ContactMethod,
+    friction: FrictionLaw,
+    law: Material,
+) -> Result<State, String>
+where
+    Dim<D>: SpatialDim<D>,
+{
+    rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build()
+        .unwrap()
+        .install(|| {
+            let mut sim = scene::<D>(method, friction, law);
+            for _ in 0..25 {
+                sim.step().map_err(|e| e.to_string())?;
+            }
+            Ok(sim.state().clone())
+        })
+}
+
+fn same_outcome(a: &Result<State, String>, b: &Result<State, String>) -> bool {
+    match (a, b) {
+        (Ok(a), Ok(b)) => same_bits(a, b),
+        (Err(a), Err(b)) => a == b,
+        _ => false,
+    }
+}
+
+fn same_bits(a: &State, b: &State) -> bool {
+    let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+    bits(&a.displacement) == bits(&b.displacement)
+        && bits(&a.velocity) == bits(&b.velocity)
+        && a.external_work.to_bits() == b.external_work.to_bits()
+        && a.dissipated_energy.to_bits() == b.dissipated_energy.to_bits()
+        && a == b
+}
+
+fn every_method_and_law_is_thread_independent<const D: usize>()
+where
+    Dim<D>: SpatialDim<D>,
+{
+    let rubber = Material::LinearElastic(LinearElastic::new(1e7, 0.3, 1000.0).unwrap());
+    let laws = [
+        FrictionLaw::Frictionless,
+        FrictionLaw::Coulomb {
+            coefficient: 0.3,
+            regularization: 1e-4,
+        },
+        FrictionLaw::Tresca {
+            limit: 1e3,
+            regularization: 1e-4,
+        },
+        FrictionLaw::Viscoplastic {
+            coefficient: 1e3,
+            exponent: 0.5,
+            regularization: 1e-4,
+        },
+    ];
+    let methods = [
+        ContactMethod::SoftWay,
+        ContactMethod::ImplicitProjection,
+        ContactMethod::AugmentedLagrangian,
+        ContactMethod::ExplicitProjection,
+    ];
+    let mut failures = 0;
+    for method in methods {
+        for friction in laws {
+            let one = run::<D>(1, method, friction, rubber);
+            let two = run::<D>(2, method, friction, rubber);
+            assert!(
+                same_outcome(&one, &two),
+                "{method:?} {friction:?}: 1 and 2 threads differ"
+            );
+            if let Err(e) = one {
+                // Known defects of issue 10: implicit projection and the augmented Lagrangian
+                // with friction on a body sliding over another stop (no convergence after
+                // four step cuts); the outcome is still the same on any number of threads.
+                eprintln!("{D}D {method:?} {friction:?}: {e}");
+                assert!(
+                    method != ContactMethod::SoftWay,
+                    "the soft way stopped: {e}"
+                );
+                assert!(
+                    friction != FrictionLaw::Frictionless,
+                    "frictionless stopped: {e}"
+                );
+                failures += 1;
+            }
+        }
+    }
+    // Measured: 3 (2D) and 4 (3D) of the 6 frictional runs of implicit projection and the
+    // augmented Lagrangian stop; a regression past that fails here.
+    assert!(failures <= 4, "{failures} of 16 runs stopped");
+    let materials = [
+        Material::Hypoelastic(
+            Hypoelastic::new(1e7, 0.3, 1000.0, RotationUpdate::HughesWinget).unwrap(),
+        ),
+        Material::NortonHoff(NortonHoff::new(1e5, 0.3, 1000.0, 1e8).unwrap()),
+    ];
+    for law in materials {
+        let coulomb = laws[1];
+        let one = run::<D>(1, ContactMethod::SoftWay, coulomb, law);
+        let two = run::<D>(2, ContactMethod::SoftWay, coulomb, law);
+        assert!(same_outcome(&one, &two), "{law:?}: 1 and 2 threads differ");
+        assert!(one.is_ok(), "{law:?}: {one:?}");
+    }
+}
+
+both_dims!(every_method_and_law_is_thread_independent);
