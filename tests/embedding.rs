@@ -257,21 +257,26 @@ fn a_kinematic_obstacle_follows_its_poses<const D: usize>()
 where
     Dim<D>: SpatialDim<D>,
 {
-    // A paddle (box obstacle) the host moves and turns every step, away from the block.
+    // A paddle (box obstacle) that the host poses every step: it moves along x into the block
+    // and pushes it over the floor while turning slowly about its centre.
     let paddle = Obstacle::new(
         "paddle",
         ObstacleShape::Box {
-            center: vec_d([1.0, 0.5, 0.0]),
-            half_extents: vec_d([0.1, 0.02, 0.1]),
+            center: vec_d([-0.03, 0.05, 0.05]),
+            half_extents: vec_d([0.02, 0.04, 0.1]),
         },
     );
     let mut sim = scene::<D>();
+    let a = sim.body_id("a").unwrap();
+    let floor = sim.obstacle_id("floor").unwrap();
     let id = sim.add_obstacle(paddle).unwrap();
+    let mass = sim.body_mass(a).unwrap();
     let h = sim.settings().time_step;
-    for i in 1..=60 {
+    let mut touched = false;
+    for i in 1..=90 {
         let t = i as f64 * h;
-        let translation = vec_d::<D>([0.2 * t, 0.1 * (3.0 * t).sin(), 0.0]);
-        let angle = 2.0 * t;
+        let translation = vec_d::<D>([0.2 * t, 0.0, 0.0]);
+        let angle = 0.2 * t;
         let rotation = SMatrix::<f64, D, D>::from_fn(|r, c| match (r, c) {
             (0, 0) | (1, 1) => angle.cos(),
             (1, 0) => angle.sin(),
@@ -281,10 +286,29 @@ where
         });
         sim.set_obstacle_next_pose(id, translation, rotation)
             .unwrap();
+        let p0 = momentum(&sim, a);
         sim.step().unwrap();
         assert!((sim.obstacle_translation(id).unwrap() - translation).norm() < 1e-12);
         assert!((sim.obstacle_rotation(id).unwrap() - rotation).amax() < 1e-12);
+        // M (v1 - v0) = h (m g + F_floor + F_paddle).
+        let (f_floor, f_paddle) = (
+            sim.obstacle_contact_force(floor).unwrap(),
+            sim.obstacle_contact_force(id).unwrap(),
+        );
+        let dp = momentum(&sim, a) - p0;
+        let expected = (gravity::<D>() * mass + f_floor + f_paddle) * h;
+        let scale = (mass * G + f_floor.norm() + f_paddle.norm()) * h;
+        assert!(
+            (dp - expected).norm() <= 1e-6 * scale,
+            "step {i}: {dp:?} against {expected:?}"
+        );
+        touched |= f_paddle[0] > 0.0;
     }
+    assert!(touched, "the paddle pushed the block");
+    assert!(
+        sim.velocity(a, 0).unwrap()[0] > 0.1,
+        "the block moves with the paddle"
+    );
     let bad = SMatrix::<f64, D, D>::identity() * 2.0;
     assert!(sim
         .set_obstacle_next_pose(id, SVector::zeros(), bad)
