@@ -252,6 +252,16 @@ impl LoadedScene {
             body.damping.stiffness =
                 self.non_negative(&format!("{key}.damping.stiffness"), d.stiffness, "s")?;
         }
+        if let Some(s) = spec.gravity_scale {
+            if !s.is_finite() {
+                return Err(self.error(
+                    &format!("{key}.gravity_scale"),
+                    s,
+                    "a finite factor (dimensionless)",
+                ));
+            }
+            body.gravity_scale = s;
+        }
         for (c, cs) in spec.constraints.iter().enumerate() {
             let ck = format!("{key}.constraints.{c}");
             body.constraints

@@ -316,6 +316,9 @@ pub struct BodySection {
     /// Rayleigh damping.
     #[serde(default)]
     pub damping: Option<DampingSpec>,
+    /// Factor on gravity for this body (dimensionless, default 1).
+    #[serde(default)]
+    pub gravity_scale: Option<f64>,
 }
 
 /// `damping = { mass, stiffness }`: Rayleigh damping `C = mass M + stiffness K`.
