@@ -1,5 +1,8 @@
-//! Small statistics shared by the figure-printing examples.
+//! What the examples share: small statistics (the figure printers) and the command line and
+//! recording of the runnable examples (`run`).
 #![allow(dead_code)] // each example uses its own subset
+
+pub mod run;
 
 /// The median (upper middle for an even count); NaN for no samples.
 pub fn median(mut v: Vec<f64>) -> f64 {
