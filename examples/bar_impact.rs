@@ -30,7 +30,7 @@ mod common;
 
 use std::path::PathBuf;
 
-use common::run::{Args, Failure, Recording};
+use common::run::{conclude, Args, Failure, Recording};
 use nalgebra::Vector2;
 use softway::prelude::*;
 
@@ -255,22 +255,7 @@ fn main() -> std::process::ExitCode {
             rerun: args.rerun()?,
         })
     });
-    match options.and_then(|o| run(&o)) {
-        Err(e) => {
-            eprintln!("bar_impact: {e}");
-            std::process::ExitCode::from(2)
-        }
-        Ok(s) => {
-            print(&s);
-            match check(&s) {
-                Ok(()) => std::process::ExitCode::SUCCESS,
-                Err(e) => {
-                    eprintln!("bar_impact FAILED:\n{e}");
-                    std::process::ExitCode::FAILURE
-                }
-            }
-        }
-    }
+    conclude("bar_impact", options.and_then(|o| run(&o)), print, check)
 }
 
 #[cfg(test)]

@@ -21,7 +21,7 @@
 
 mod common;
 
-use common::run::{Args, Failure, Recording};
+use common::run::{conclude, Args, Failure, Recording};
 use nalgebra::Vector2;
 use softway::prelude::*;
 
@@ -195,23 +195,7 @@ fn main() -> std::process::ExitCode {
             rerun: args.rerun()?,
         })
     });
-    let summary = options.and_then(|o| run(&o));
-    match summary {
-        Err(e) => {
-            eprintln!("hello_contact: {e}");
-            std::process::ExitCode::from(2)
-        }
-        Ok(s) => {
-            print(&s);
-            match check(&s) {
-                Ok(()) => std::process::ExitCode::SUCCESS,
-                Err(e) => {
-                    eprintln!("hello_contact FAILED:\n{e}");
-                    std::process::ExitCode::FAILURE
-                }
-            }
-        }
-    }
+    conclude("hello_contact", options.and_then(|o| run(&o)), print, check)
 }
 
 #[cfg(test)]

@@ -31,7 +31,7 @@ mod common;
 
 use std::path::{Path, PathBuf};
 
-use common::run::{Args, Failure, Recording};
+use common::run::{conclude, Args, Failure, Recording};
 use softway::prelude::*;
 
 /// What the example is asked to do.
@@ -249,22 +249,7 @@ fn main() -> std::process::ExitCode {
             rerun: args.rerun()?,
         })
     });
-    match options.and_then(|o| run(&o)) {
-        Err(e) => {
-            eprintln!("ring_drop: {e}");
-            std::process::ExitCode::from(2)
-        }
-        Ok(s) => {
-            print(&s);
-            match check(&s) {
-                Ok(()) => std::process::ExitCode::SUCCESS,
-                Err(e) => {
-                    eprintln!("ring_drop FAILED:\n{e}");
-                    std::process::ExitCode::FAILURE
-                }
-            }
-        }
-    }
+    conclude("ring_drop", options.and_then(|o| run(&o)), print, check)
 }
 
 #[cfg(test)]

@@ -139,3 +139,29 @@ where
         }
     }
 }
+
+/// How an example ends: the run's error (exit 2), or its summary printed and checked (exit 0,
+/// or 1 with what failed).
+pub fn conclude<S>(
+    name: &str,
+    outcome: Result<S, Failure>,
+    print: fn(&S),
+    check: fn(&S) -> Result<(), String>,
+) -> std::process::ExitCode {
+    match outcome {
+        Err(e) => {
+            eprintln!("{name}: {e}");
+            std::process::ExitCode::from(2)
+        }
+        Ok(s) => {
+            print(&s);
+            match check(&s) {
+                Ok(()) => std::process::ExitCode::SUCCESS,
+                Err(e) => {
+                    eprintln!("{name} FAILED:\n{e}");
+                    std::process::ExitCode::FAILURE
+                }
+            }
+        }
+    }
+}
