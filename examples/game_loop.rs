@@ -192,6 +192,6 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
 
 #[test]
 fn the_loop_keeps_up_and_the_crates_land() {
-    let played = play(2.0).unwrap();
+    let played = play(3.0).unwrap();
     check(&played).unwrap();
 }
