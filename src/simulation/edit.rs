@@ -20,6 +20,22 @@ struct Remap {
     obstacles: Vec<Option<usize>>,
 }
 
+/// `count` entities that all stay where they are.
+fn kept(count: usize) -> Vec<Option<usize>> {
+    (0..count).map(Some).collect()
+}
+
+/// `count` entities without the one at `removed`: the later ones move down by one.
+fn without(count: usize, removed: usize) -> Vec<Option<usize>> {
+    (0..count)
+        .map(|i| match i.cmp(&removed) {
+            std::cmp::Ordering::Less => Some(i),
+            std::cmp::Ordering::Equal => None,
+            std::cmp::Ordering::Greater => Some(i - 1),
+        })
+        .collect()
+}
+
 impl<const D: usize> Simulation<D>
 where
     Dim<D>: SpatialDim<D>,
@@ -32,8 +48,8 @@ where
         let mut model = self.model.clone();
         model.bodies.push(body);
         let remap = Remap {
-            bodies: (0..self.model.bodies.len()).map(Some).collect(),
-            obstacles: (0..self.model.obstacles.len()).map(Some).collect(),
+            bodies: kept(self.model.bodies.len()),
+            obstacles: kept(self.model.obstacles.len()),
         };
         let position = self.model.bodies.len();
         self.rebuild(model, &remap)?;
@@ -54,14 +70,8 @@ where
         let mut model = self.model.clone();
         let removed = model.bodies.remove(b);
         let remap = Remap {
-            bodies: (0..self.model.bodies.len())
-                .map(|i| match i.cmp(&b) {
-                    std::cmp::Ordering::Less => Some(i),
-                    std::cmp::Ordering::Equal => None,
-                    std::cmp::Ordering::Greater => Some(i - 1),
-                })
-                .collect(),
-            obstacles: (0..self.model.obstacles.len()).map(Some).collect(),
+            bodies: without(self.model.bodies.len(), b),
+            obstacles: kept(self.model.obstacles.len()),
         };
         self.rebuild(model, &remap)?;
         self.remove_body_slot(b);
@@ -73,8 +83,8 @@ where
         let mut model = self.model.clone();
         model.obstacles.push(obstacle);
         let remap = Remap {
-            bodies: (0..self.model.bodies.len()).map(Some).collect(),
-            obstacles: (0..self.model.obstacles.len()).map(Some).collect(),
+            bodies: kept(self.model.bodies.len()),
+            obstacles: kept(self.model.obstacles.len()),
         };
         let position = self.model.obstacles.len();
         self.rebuild(model, &remap)?;
@@ -87,14 +97,8 @@ where
         let mut model = self.model.clone();
         let removed = model.obstacles.remove(k);
         let remap = Remap {
-            bodies: (0..self.model.bodies.len()).map(Some).collect(),
-            obstacles: (0..self.model.obstacles.len())
-                .map(|i| match i.cmp(&k) {
-                    std::cmp::Ordering::Less => Some(i),
-                    std::cmp::Ordering::Equal => None,
-                    std::cmp::Ordering::Greater => Some(i - 1),
-                })
-                .collect(),
+            bodies: kept(self.model.bodies.len()),
+            obstacles: without(self.model.obstacles.len(), k),
         };
         self.rebuild(model, &remap)?;
         self.remove_obstacle_slot(k);
