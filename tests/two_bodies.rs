@@ -87,7 +87,8 @@ mod open {
         super::stack::<2>(ContactMethod::AugmentedLagrangian);
     }
     #[test]
-    #[ignore = "the active set cycles at the landing (t = 0.069 s), reported as no convergence"]
+    #[ignore = "runs to the end (6.2e-4 m deep between the blocks) but its energy account is off \
+                by 0.40 of the reference"]
     fn implicit_projection_3d() {
         super::stack::<3>(ContactMethod::ImplicitProjection);
     }

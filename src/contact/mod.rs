@@ -13,7 +13,9 @@ use serde::{Deserialize, Serialize};
 
 pub use detection::{ContactPair, ContactSurface, DetectionOptions, Detector, Feature, Master};
 pub use obstacle::{MotionSegment, Obstacle, ObstacleShape};
-pub use resolution::{ContactMethod, ContactSettings, FrictionLaw, GapDisplacement};
+pub use resolution::{
+    ContactMethod, ContactSettings, FrictionLaw, GapDisplacement, ProjectionMetric,
+};
 
 /// The master side of a contact, as remembered between iterations and steps.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize, Deserialize)]

@@ -365,6 +365,9 @@ where
                 terms.energy += 0.5 * self.model.contact.penalty * area * gap * gap;
             }
             terms.dissipation_rate += -friction.dot(&slip);
+            if input.method.books_normal_work() {
+                terms.dissipation_rate += -normal_force * normal.dot(&(r0 + r1)) * 0.5;
+            }
             terms.pairs.push(PairOutcome {
                 key,
                 normal,

@@ -30,6 +30,7 @@ mod rotation;
 pub mod state;
 mod step;
 mod symmetric_matrix;
+mod weighted_projection;
 
 pub use contacts::{ContactEvent, ContactMaster, ContactPoint, Touching};
 pub use fixed_timestep::{FixedTimestep, FrameReport};

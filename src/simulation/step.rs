@@ -12,7 +12,7 @@ use super::{end_positions, invalid, Simulation, StepReport};
 use crate::assembly;
 use crate::contact::methods::projection::{project, Applied, ProjectionContext};
 use crate::contact::methods::{self, EndProjection, Method};
-use crate::contact::{GapDisplacement, Master};
+use crate::contact::{GapDisplacement, Master, ProjectionMetric};
 use crate::dim::{Dim, SpatialDim};
 use crate::error::{Error, Result};
 use crate::time::SpaceTimeScheme;
@@ -309,34 +309,61 @@ where
                 let pairs = detector.pairs(&x_end, &start.obstacles_t1);
                 let (u_before, v_before) = (u1.clone(), v1.clone());
                 let mut impulses = vec![vec![0.0; D]; self.model.obstacles.len()];
-                let detector = self.caches.detector.as_ref().expect("checked");
-                let velocity = |k: usize, x: &SVector<f64, D>| {
-                    self.surface_velocity(k, &start.obstacles_t1[k], x)
-                };
-                let context = ProjectionContext {
-                    rule,
-                    active: &vars.active,
-                    facet_body: detector.surface().facet_body(),
-                    facets: detector.surface().facets(),
-                    nodal_mass: &self.nodal_mass,
-                    prescribed: &self.prescribed,
-                    obstacle_velocity: &velocity,
-                    time_step: h,
-                };
                 // Projected on the gaps' positions; the configuration moves with them.
                 let gap_before = gap_u1.clone();
-                project(
-                    &context,
-                    &pairs,
-                    &mut gap_u1,
-                    &mut v1,
-                    &mut impulses,
-                    &mut applied,
-                );
+                if rule == EndProjection::Active
+                    && self.model.contact.projection == ProjectionMetric::Step
+                {
+                    let facets = detector.surface().facets().to_vec();
+                    // Twice: the first correction can bring neighbours of the contact
+                    // patch into the master.
+                    let mut pairs = pairs;
+                    for pass in 0..2 {
+                        let x_end =
+                            end_positions(&self.reference, &gap_u1, &v1, &vec![0.0; ndof], 0.0);
+                        if pass > 0 {
+                            let detector = self.caches.detector.as_mut().expect("checked");
+                            detector.update_candidates_posed(
+                                &start.x0,
+                                &x_end,
+                                &start.obstacles_t0,
+                                &start.obstacles_t1,
+                            );
+                            pairs = detector.pairs(&x_end, &start.obstacles_t1);
+                        }
+                        let du = self.weighted_projection(&pairs, &facets, &x_end, h, step)?;
+                        for (g, d) in gap_u1.iter_mut().zip(&du) {
+                            *g += d;
+                        }
+                    }
+                } else {
+                    let detector = self.caches.detector.as_ref().expect("checked");
+                    let velocity = |k: usize, x: &SVector<f64, D>| {
+                        self.surface_velocity(k, &start.obstacles_t1[k], x)
+                    };
+                    let context = ProjectionContext {
+                        rule,
+                        active: &vars.active,
+                        facet_body: detector.surface().facet_body(),
+                        facets: detector.surface().facets(),
+                        nodal_mass: &self.nodal_mass,
+                        prescribed: &self.prescribed,
+                        obstacle_velocity: &velocity,
+                        time_step: h,
+                    };
+                    project(
+                        &context,
+                        &pairs,
+                        &mut gap_u1,
+                        &mut v1,
+                        &mut impulses,
+                        &mut applied,
+                    );
+                }
                 for i in 0..ndof {
                     u1[i] += gap_u1[i] - gap_before[i];
                 }
-                if rule == EndProjection::PenetratingWithVelocity {
+                if rule != EndProjection::None {
                     projection_dissipation = self.projection_dissipation(
                         [&u_before, &v_before],
                         [&u1, &v1],

@@ -3,8 +3,18 @@
 //! the time step is settled equal to zero and the tangential velocity is free to change") by a
 //! multiplier updated between solves (an augmented Lagrangian on the velocity constraint, exact
 //! at convergence); its end position is projected onto the master ([`super::projection`]).
-//! Points in tension are released, newly penetrating points added, until the set no longer
-//! changes; a set seen before in the step is a cycle.
+//!
+//! The constraint of an active point is `C = max(w_n, 2 g / h) = 0` (w_n the relative normal
+//! end velocity, g the eq 22 gap, which moves by `h/2` per unit of w_n: both branches have
+//! slope 1). A point already on the master, or one that cannot stop before it, is held at
+//! `w_n = 0` (the paper's rule); a point that would stop short of the master closes the gap
+//! exactly instead of being held in the air. A free point is activated only when it violates
+//! the same constraint (penetrating and still approaching): the activation test and the
+//! constraint agree, so a point that penetrates while it separates is not re-activated (the
+//! cycle the position test made on soft bodies). Points in tension are released; a point
+//! released twice in a step stays closed until the step ends (node locking), and when a set
+//! comes back every point released in the step keeps its status until the step ends: each
+//! point changes status a bounded number of times, so the iteration ends.
 
 use super::{
     EndProjection, Method, NormalInput, NormalLaw, OuterUpdate, OuterVariables, PairStatus,
@@ -19,6 +29,15 @@ const VELOCITY_PENALTY: f64 = 1e4;
 
 /// The return map's tangential stiffness times the step, relative to the largest diagonal.
 const TANGENTIAL_PENALTY: f64 = 1e2;
+
+/// Releases of one point in a step after which it stays closed until the step ends.
+pub(crate) const RELEASES_BEFORE_LOCK: u32 = 2;
+
+/// The constraint of an active point, `max(w_n, 2 g / h)` (m/s): zero when it is held on the
+/// master (`w_n = 0`, `g <= 0`) or closes the gap exactly while approaching (`g = 0`).
+fn constraint(normal_velocity: f64, gap: f64, time_step: f64) -> f64 {
+    normal_velocity.max(2.0 * gap / time_step)
+}
 
 impl Method for ImplicitProjection {
     fn start(&self, vars: &mut OuterVariables, penetrating: &[ContactKey]) {
@@ -39,7 +58,7 @@ impl Method for ImplicitProjection {
         let rho = VELOCITY_PENALTY * input.diagonal;
         let lambda = vars.multipliers.get(&input.key).copied().unwrap_or(0.0);
         NormalLaw {
-            force: lambda - rho * input.normal_velocity,
+            force: lambda - rho * constraint(input.normal_velocity, input.gap, input.time_step),
             stiffness: rho,
             pressure: 0.0,
         }
@@ -53,9 +72,24 @@ impl Method for ImplicitProjection {
         time_step: f64,
         log: &mut dyn FnMut(String),
     ) -> OuterUpdate {
+        let tolerance = settings.gap_tolerance / time_step;
         let mut changed = false;
         for p in pairs {
+            if vars.locked.contains(&p.key) {
+                continue;
+            }
+            let c = constraint(p.normal_velocity, p.gap, time_step);
             if vars.active.contains(&p.key) && p.normal_force < 0.0 {
+                let released = vars.releases.get(&p.key).copied().unwrap_or(0);
+                if released >= RELEASES_BEFORE_LOCK {
+                    vars.locked.insert(p.key);
+                    log(format!(
+                        "node {} kept closed (released {released} times; tension {:.3e} N)",
+                        p.key.0, p.normal_force
+                    ));
+                    continue;
+                }
+                vars.releases.insert(p.key, released + 1);
                 vars.active.remove(&p.key);
                 vars.multipliers.remove(&p.key);
                 changed = true;
@@ -63,25 +97,43 @@ impl Method for ImplicitProjection {
                     "node {} released (tension {:.3e} N)",
                     p.key.0, p.normal_force
                 ));
-            } else if !vars.active.contains(&p.key) && p.gap < -settings.gap_tolerance {
+            } else if !vars.active.contains(&p.key) && c < -tolerance {
                 vars.active.insert(p.key);
                 changed = true;
-                log(format!("node {} activated (gap {:.3e} m)", p.key.0, p.gap));
+                log(format!(
+                    "node {} activated (gap {:.3e} m, normal velocity {:.3e} m/s)",
+                    p.key.0, p.gap, p.normal_velocity
+                ));
             }
         }
         if changed {
             let set: Vec<ContactKey> = vars.active.iter().copied().collect();
             if !vars.seen_sets.insert(set) {
-                log("the contact set cycles".into());
-                return OuterUpdate::Cycle;
+                // A cycle: every point released in this step keeps the status it has now
+                // until the step ends (closed ones may pull, open ones are moved out by the
+                // end-of-step projection); the rest go on.
+                let flipping: Vec<ContactKey> = vars
+                    .releases
+                    .keys()
+                    .filter(|k| !vars.locked.contains(k))
+                    .copied()
+                    .collect();
+                if flipping.is_empty() {
+                    log("the contact set cycles".into());
+                    return OuterUpdate::Cycle;
+                }
+                log(format!(
+                    "the contact set cycles: {} flipping node(s) keep their status",
+                    flipping.len()
+                ));
+                vars.locked.extend(flipping);
             }
             return OuterUpdate::Again;
         }
-        let tolerance = settings.gap_tolerance / time_step;
         let worst = pairs
             .iter()
             .filter(|p| vars.active.contains(&p.key))
-            .map(|p| p.normal_velocity.abs())
+            .map(|p| constraint(p.normal_velocity, p.gap, time_step).abs())
             .fold(0.0, f64::max);
         if worst <= tolerance {
             return OuterUpdate::Converged;
@@ -110,6 +162,10 @@ impl Method for ImplicitProjection {
     /// `F_t h^2 / (100 m)`, and the iteration matrix's rows grow a hundredfold at most.
     fn tangential_stiffness(&self, input: &NormalInput, _settings: &ContactSettings) -> f64 {
         TANGENTIAL_PENALTY * input.diagonal / input.time_step
+    }
+
+    fn books_normal_work(&self) -> bool {
+        true
     }
 
     fn end_projection(&self) -> EndProjection {

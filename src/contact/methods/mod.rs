@@ -34,6 +34,12 @@ pub(crate) struct OuterVariables {
     pub active: BTreeSet<ContactKey>,
     /// Implicit projection: every active set seen in this step (a repeat is a cycle).
     pub seen_sets: HashSet<Vec<ContactKey>>,
+    /// Implicit projection: how often each point was released in this step; a point released
+    /// [`implicit_projection::RELEASES_BEFORE_LOCK`] times stays closed until the step ends.
+    pub releases: BTreeMap<ContactKey, u32>,
+    /// Implicit projection: the points whose status is kept until the step ends (released
+    /// too often, or flipping in a cycle).
+    pub locked: BTreeSet<ContactKey>,
     /// Whether [`Method::start`] ran in this step.
     pub started: bool,
 }
@@ -182,6 +188,14 @@ pub(crate) trait Method: Sync {
     /// The end-of-step correction.
     fn end_projection(&self) -> EndProjection {
         EndProjection::None
+    }
+
+    /// Whether the normal force's work on the relative motion, `-F_n n . h (w0 + w1) / 2`
+    /// per step (the displacement the scheme's conserved energy books forces on), is booked
+    /// as dissipated: a constraint force stores nothing, so the kinetic energy an inelastic
+    /// stop removes goes there.
+    fn books_normal_work(&self) -> bool {
+        false
     }
 
     /// Whether the multipliers are carried to the next step.

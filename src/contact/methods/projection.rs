@@ -53,7 +53,8 @@ pub(crate) fn project<const D: usize>(
         };
         let project = match ctx.rule {
             EndProjection::None => false,
-            EndProjection::Active => ctx.active.contains(&key),
+            // Out of the master only: an active point that ends above it stays there.
+            EndProjection::Active => ctx.active.contains(&key) && p.gap < 0.0,
             EndProjection::PenetratingWithVelocity => p.gap < 0.0,
         };
         if !project {
