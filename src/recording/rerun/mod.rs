@@ -120,10 +120,17 @@ impl<const D: usize> RerunRecorder<D>
 where
     Dim<D>: SpatialDim<D>,
 {
-    /// Records into the `.rrd` file at `path` (created or truncated). Call
-    /// [`RerunRecorder::finish`] at the end to write the file's footer.
+    /// Records into the `.rrd` file at `path` (created or truncated, its missing parent folders
+    /// created, as the output folder of a run is). Call [`RerunRecorder::finish`] at the end to
+    /// write the file's footer.
     pub fn to_file(path: impl AsRef<Path>) -> Result<Self> {
         let path = path.as_ref();
+        if let Some(parent) = path.parent().filter(|p| !p.as_os_str().is_empty()) {
+            std::fs::create_dir_all(parent).map_err(|source| Error::Output {
+                file: parent.to_path_buf(),
+                source,
+            })?;
+        }
         let rec = builder().save(path).map_err(|e| Error::Output {
             file: path.to_path_buf(),
             source: std::io::Error::other(e.to_string()),
