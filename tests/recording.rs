@@ -168,7 +168,10 @@ fn unwritable_file_is_an_output_error() {
     let dir = tempfile::tempdir().unwrap();
     // Missing folders are created.
     let path = dir.path().join("missing/folder/run.rrd");
-    RerunRecorder::<2>::to_file(&path).unwrap().finish().unwrap();
+    RerunRecorder::<2>::to_file(&path)
+        .unwrap()
+        .finish()
+        .unwrap();
     assert!(path.is_file());
     // A file in the way of the folder.
     let blocker = dir.path().join("a_file");
