@@ -1,6 +1,7 @@
 //! Fuzzing the input readers on stable Rust (issue 14): the scene loader with `--set`
-//! overrides, and the Gmsh reader. cargo-fuzz needs a nightly toolchain, which the project's
-//! machines do not have; this is a deterministic mutation fuzzer instead. Seeded by the bundled
+//! overrides, and the Gmsh reader. The coverage-guided targets are in `fuzz/` (cargo-fuzz,
+//! run by CI); this is the deterministic mutation fuzzer that runs with `cargo test` on any
+//! machine, no extra tool, the same inputs every time. Seeded by the bundled
 //! fixtures (`fixtures/scenes/*.toml`, `fixtures/scenes/bad/*.toml`, `fixtures/meshes/*.msh`)
 //! and the committed corpus (`fixtures/fuzz/`), it applies byte flips, truncations, deletions,
 //! splices between inputs, line duplications and numbers replaced by extreme values (nan, inf,
