@@ -5,8 +5,17 @@
 //! clock within a step (the hitch's excess aside), every landing is reported once, every live
 //! crate rests on the floor at the end (its lowest point within 1 mm), and stale handles are refused.
 //!
-//! Run: `cargo run --release --example game_loop` (2D, 3 s of host time).
+//! Run: `cargo run --example game_loop [-- --seconds 3] [--rerun game.rrd]` (2D, 3 s of
+//! host time; `--rerun` needs the `rerun` feature, on by default, and records every step
+//! through `FixedTimestep::advance_with`, the crates appearing and disappearing as they are
+//! spawned and despawned; view the file with `rerun game.rrd`). Its tests:
+//! `cargo test --example game_loop`.
 
+mod common;
+
+use std::path::Path;
+
+use common::run::{conclude, Args, Failure, Recording};
 use nalgebra::Vector2;
 use softway::contact::ObstacleShape;
 use softway::prelude::*;
@@ -48,8 +57,8 @@ fn crate_body(name: String, x: f64) -> softway::Result<Body<2>> {
     Ok(Body::new(name, mesh, rubber).with_damping(0.0, 1e-3))
 }
 
-/// Plays `seconds` of host time.
-pub fn play(seconds: f64) -> softway::Result<Played> {
+/// Plays `seconds` of host time, recording to the Rerun file `rerun` when given.
+pub fn play(seconds: f64, rerun: Option<&Path>) -> Result<Played, Failure> {
     let floor = Obstacle::new(
         "floor",
         ObstacleShape::Halfspace {
@@ -68,6 +77,7 @@ pub fn play(seconds: f64) -> softway::Result<Played> {
             ..Default::default()
         })
         .build()?;
+    let mut recording = Recording::new(rerun, sim.obstacles())?;
     let floor = sim.obstacle_id("floor").expect("built with it");
     let mut alive = vec![sim.body_id("crate 0").expect("built with it")];
     let mut despawned_ids = Vec::new();
@@ -91,7 +101,7 @@ pub fn play(seconds: f64) -> softway::Result<Played> {
         let jitter = 1.0 + 0.3 * ((frame as f64) * 2.3).sin();
         let dt = if frame == 90 { 0.25 } else { jitter / 60.0 };
         played.host_time += dt;
-        let report = clock.advance(&mut sim, dt)?;
+        let report = clock.advance_with(&mut sim, dt, recording.recorder())?;
         played.steps += report.steps;
         if report.behind {
             // The game gives up catching up rather than stalling its frames.
@@ -122,11 +132,10 @@ pub fn play(seconds: f64) -> softway::Result<Played> {
         }
         frame += 1;
     }
+    recording.finish()?;
     for old in &despawned_ids {
         if sim.position(*old, 0).is_ok() {
-            return Err(softway::Error::InvalidHandle(
-                "a despawned crate's handle still answers".into(),
-            ));
+            return Err("a despawned crate's handle still answers".into());
         }
     }
     played.frames = frame;
@@ -169,29 +178,54 @@ fn check(p: &Played) -> Result<(), String> {
     Ok(())
 }
 
-fn main() -> Result<(), Box<dyn std::error::Error>> {
-    let played = play(3.0)?;
+fn print(p: &Played) {
     println!(
         "{} frames, {} steps, host {:.3} s, simulated {:.3} s, dropped {:.3} s; {} crates \
          spawned, {} despawned, {} landed ({} landings with the bounces); the crates rest within {:.1e} m of the floor",
-        played.frames,
-        played.steps,
-        played.host_time,
-        played.sim_time,
-        played.dropped,
-        played.spawned,
-        played.despawned,
-        played.landed,
-        played.landings,
-        played.rest_error
+        p.frames,
+        p.steps,
+        p.host_time,
+        p.sim_time,
+        p.dropped,
+        p.spawned,
+        p.despawned,
+        p.landed,
+        p.landings,
+        p.rest_error
     );
-    check(&played)?;
-    println!("ok");
-    Ok(())
 }
 
-#[test]
-fn the_loop_keeps_up_and_the_crates_land() {
-    let played = play(3.0).unwrap();
-    check(&played).unwrap();
+fn main() -> std::process::ExitCode {
+    let usage = "usage: game_loop [--seconds SECONDS] [--rerun FILE.rrd]";
+    let outcome = Args::parse(&["--seconds"], usage).and_then(|args| {
+        let seconds = args.get("--seconds")?.unwrap_or(3.0);
+        play(seconds, args.rerun()?.as_deref())
+    });
+    conclude("game_loop", outcome, print, check)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The default run, checked as `main` checks it.
+    #[test]
+    fn the_loop_keeps_up_and_the_crates_land() {
+        let played = play(3.0, None).unwrap();
+        check(&played).unwrap();
+    }
+
+    /// `--rerun FILE` records the loop as `main` plays it, crates spawned and despawned (the
+    /// recorder follows the changing set of bodies).
+    #[cfg(feature = "rerun")]
+    #[test]
+    fn records_to_rerun() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("game.rrd");
+        let played = play(3.0, Some(&path)).unwrap();
+        check(&played).unwrap();
+        assert!(played.despawned > 0, "{played:?}");
+        let size = std::fs::metadata(&path).unwrap().len();
+        assert!(size > 10_000, "{size} bytes recorded");
+    }
 }

@@ -5,9 +5,16 @@
 //! jaws' contact forces through the API and checks that their vertical friction carries the
 //! block's weight, and that the block follows the jaws.
 //!
-//! Run: `cargo run --release --example gripper` (2D, 0.5 s, default scheme and contact
-//! method). `--rerun FILE.rrd` (feature `rerun`, on by default) records every iteration.
+//! Run: `cargo run --example gripper [-- --end-time 0.5] [--rerun gripper.rrd]` (2D, 0.5 s,
+//! default scheme and contact method; `--rerun` needs the `rerun` feature, on by default, and
+//! records every iteration with the jaws drawn where the host puts them; view the file with
+//! `rerun gripper.rrd`). Its tests: `cargo test --example gripper`.
 
+mod common;
+
+use std::path::Path;
+
+use common::run::{conclude, Args, Failure, Recording};
 use nalgebra::{Matrix2, Vector2};
 use softway::contact::ObstacleShape;
 use softway::prelude::*;
@@ -44,8 +51,9 @@ pub struct Gripped {
     pub squeeze: f64,
 }
 
-/// Runs the gripper for `end` seconds (at most `LIFT`), recording to `recorder`.
-pub fn run(end: f64, recorder: &mut dyn Recorder<2>) -> softway::Result<Gripped> {
+/// Runs the gripper for `end` seconds (at most `LIFT`), recording to the Rerun file `rerun`
+/// when given.
+pub fn run(end: f64, rerun: Option<&Path>) -> Result<Gripped, Failure> {
     let rubber = Material::LinearElastic(LinearElastic::new(1e6, 0.3, 1000.0)?);
     let block = rectangle(
         Vector2::zeros(),
@@ -85,6 +93,7 @@ pub fn run(end: f64, recorder: &mut dyn Recorder<2>) -> softway::Result<Gripped>
             ..ContactSettings::default()
         })
         .build()?;
+    let mut recording = Recording::new(rerun, sim.obstacles())?;
     let block = sim.body_id("block").expect("built with it");
     let jaws = [
         (sim.obstacle_id("left").expect("built"), 1.0),
@@ -104,7 +113,7 @@ pub fn run(end: f64, recorder: &mut dyn Recorder<2>) -> softway::Result<Gripped>
         for (jaw, side) in jaws {
             sim.set_obstacle_next_pose(jaw, jaw_offset(side, t), Matrix2::identity())?;
         }
-        sim.step_with(recorder)?;
+        sim.step_with(recording.recorder())?;
         if at_hold.is_none() && t >= HOLD - 1e-9 {
             at_hold = Some(mean_height(&sim)?);
         }
@@ -116,6 +125,7 @@ pub fn run(end: f64, recorder: &mut dyn Recorder<2>) -> softway::Result<Gripped>
             samples += 1;
         }
     }
+    recording.finish()?;
     let rise = mean_height(&sim)? - at_hold.unwrap_or(0.0);
     Ok(Gripped {
         lifted: rise,
@@ -145,37 +155,43 @@ fn check(g: &Gripped) -> Result<(), String> {
     Ok(())
 }
 
-fn main() -> Result<(), Box<dyn std::error::Error>> {
-    let args: Vec<String> = std::env::args().skip(1).collect();
-    let rerun = args
-        .iter()
-        .position(|a| a == "--rerun")
-        .and_then(|i| args.get(i + 1).cloned());
-    let gripped = match rerun {
-        #[cfg(feature = "rerun")]
-        Some(path) => {
-            let mut recorder = softway::recording::RerunRecorder::<2>::to_file(&path)?;
-            let g = run(LIFT, &mut recorder)?;
-            recorder.finish()?;
-            println!("recorded to {path}");
-            g
-        }
-        #[cfg(not(feature = "rerun"))]
-        Some(_) => return Err("--rerun needs the `rerun` feature".into()),
-        None => run(LIFT, &mut NullRecorder)?,
-    };
+fn print(g: &Gripped) {
     println!(
         "block lifted {:.4} m with the jaws' {:.4} m; jaws carry {:.2} N/m of its {:.2} N/m \
          weight, squeezing with {:.1} N/m",
-        gripped.lifted, gripped.jaw_travel, gripped.carried, gripped.weight, gripped.squeeze
+        g.lifted, g.jaw_travel, g.carried, g.weight, g.squeeze
     );
-    check(&gripped)?;
-    println!("ok");
-    Ok(())
 }
 
-#[test]
-fn the_jaws_lift_the_block() {
-    let gripped = run(LIFT, &mut NullRecorder).unwrap();
-    check(&gripped).unwrap();
+fn main() -> std::process::ExitCode {
+    let usage = "usage: gripper [--end-time SECONDS] [--rerun FILE.rrd]";
+    let outcome = Args::parse(&["--end-time"], usage).and_then(|args| {
+        let end = args.get("--end-time")?.unwrap_or(LIFT);
+        run(end, args.rerun()?.as_deref())
+    });
+    conclude("gripper", outcome, print, check)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The default run, checked as `main` checks it.
+    #[test]
+    fn the_jaws_lift_the_block() {
+        let gripped = run(LIFT, None).unwrap();
+        check(&gripped).unwrap();
+    }
+
+    /// `--rerun FILE` writes a recording (the jaws closing, 0.05 s), into a folder created
+    /// for it.
+    #[cfg(feature = "rerun")]
+    #[test]
+    fn records_to_rerun() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("new/gripper.rrd");
+        run(0.05, Some(&path)).unwrap();
+        let size = std::fs::metadata(&path).unwrap().len();
+        assert!(size > 10_000, "{size} bytes recorded");
+    }
 }

@@ -352,7 +352,83 @@ where
     assert!(driver.advance(&mut sim, f64::NAN).is_err());
 }
 
+/// `body_momentum` of a body in free fall (no obstacle) is `m g t` to round-off, is the sum
+/// of `M v` over its nodes, and belongs to that body only (a second one at rest beside it),
+/// with consistent and lumped mass.
+fn momentum_of_a_free_fall<const D: usize>()
+where
+    Dim<D>: SpatialDim<D>,
+{
+    for mass in [MassKind::Consistent, MassKind::Lumped] {
+        let h = 1.0 / 240.0;
+        let mut sim = Simulation::<D>::builder()
+            .time_step(h)
+            .gravity(gravity())
+            .mass(mass)
+            .body(Body::new(
+                "falling",
+                block([0.1, 0.1, 0.1], [2, 2, 2], false),
+                rubber(),
+            ))
+            .body(cube("still", 1.0, 0.0).with_gravity_scale(0.0))
+            .build()
+            .unwrap();
+        let (falling, still) = (
+            sim.body_id("falling").unwrap(),
+            sim.body_id("still").unwrap(),
+        );
+        let m = sim.body_mass(falling).unwrap();
+        assert_eq!(
+            sim.body_momentum(falling).unwrap(),
+            SVector::<f64, D>::zeros()
+        );
+        for _ in 0..24 {
+            sim.step().unwrap();
+        }
+        let t = sim.state().time;
+        let p = sim.body_momentum(falling).unwrap();
+        let expected = gravity::<D>() * (m * t);
+        assert!(
+            (p - expected).norm() <= 1e-12 * expected.norm(),
+            "{mass:?}: {p:?} against m g t = {expected:?}"
+        );
+        // The sum of M v over the body's degrees of freedom, from the public mass matrix.
+        let mv = sim.mass_matrix().mul(&sim.state().velocity);
+        let mut sum = SVector::<f64, D>::zeros();
+        for n in sim.body_nodes(falling).unwrap() {
+            for d in 0..D {
+                sum[d] += mv[n * D + d];
+            }
+        }
+        assert!(
+            (p - sum).norm() <= 1e-14 * sum.norm(),
+            "{p:?} against {sum:?}"
+        );
+        assert_eq!(
+            sim.body_momentum(still).unwrap(),
+            SVector::<f64, D>::zeros()
+        );
+        sim.remove_body(still).unwrap();
+        assert!(sim.body_momentum(still).is_err(), "a stale handle");
+    }
+}
+
+/// `ContactMethod` parses the scene file's names and lists them when it cannot.
+#[test]
+fn contact_method_from_its_scene_name() {
+    for method in ContactMethod::ALL {
+        assert_eq!(method.name().parse::<ContactMethod>().unwrap(), method);
+    }
+    let e = "softway".parse::<ContactMethod>().unwrap_err();
+    assert_eq!(
+        e.to_string(),
+        "invalid parameter `contact method`: found \"softway\", expected one of soft_way, \
+         implicit_projection, augmented_lagrangian, explicit_projection"
+    );
+}
+
 both_dims!(
+    momentum_of_a_free_fall,
     stale_and_forged_handles_are_errors,
     contact_forces_balance_the_change_of_momentum,
     bodies_come_and_go_between_steps,

@@ -166,9 +166,19 @@ fn an_rrd_file_is_written() {
 #[test]
 fn unwritable_file_is_an_output_error() {
     let dir = tempfile::tempdir().unwrap();
+    // Missing folders are created.
     let path = dir.path().join("missing/folder/run.rrd");
+    RerunRecorder::<2>::to_file(&path)
+        .unwrap()
+        .finish()
+        .unwrap();
+    assert!(path.is_file());
+    // A file in the way of the folder.
+    let blocker = dir.path().join("a_file");
+    std::fs::write(&blocker, "").unwrap();
+    let path = blocker.join("run.rrd");
     match RerunRecorder::<2>::to_file(&path) {
-        Err(Error::Output { file, .. }) => assert_eq!(file, path),
+        Err(Error::Output { file, .. }) => assert_eq!(file, blocker),
         Err(e) => panic!("unexpected error {e}"),
         Ok(_) => panic!("created {}", path.display()),
     }

@@ -1,7 +1,7 @@
 //! The `softway` command line: `run`, `check`, `resume` (see scene-format.md). SIGINT and
 //! SIGTERM end a run cleanly (outputs, a checkpoint, the recording); a second one at once.
 
-use std::io::IsTerminal;
+use std::io::{IsTerminal, Write};
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
@@ -87,6 +87,39 @@ enum Command {
 
 const INVALID: u8 = 2;
 const FAILED: u8 = 3;
+/// 128 + SIGPIPE: standard output was closed by its reader (`softway check SCENE | head -1`),
+/// the status of a program that SIGPIPE ends.
+const BROKEN_PIPE: i32 = 141;
+
+/// `println!` that does not panic when standard output is a closed pipe: the program ends
+/// quietly with [`BROKEN_PIPE`] (every line of `check` is written once the scene is valid, so
+/// nothing is lost that the reader wanted). Any other write error: a message, status 3.
+macro_rules! outln {
+    ($($arg:tt)*) => { write_out(format_args!($($arg)*)) };
+}
+
+/// `eprintln!` that does not panic when standard error is closed: the message is lost, the exit
+/// status stays the one the contract gives.
+macro_rules! errln {
+    ($($arg:tt)*) => { write_err(format_args!($($arg)*)) };
+}
+
+fn write_out(line: std::fmt::Arguments) {
+    let mut out = std::io::stdout().lock();
+    // Line buffered: the line is written (or refused) here, not at exit.
+    if let Err(e) = out.write_fmt(line).and_then(|()| out.write_all(b"\n")) {
+        if e.kind() == std::io::ErrorKind::BrokenPipe {
+            std::process::exit(BROKEN_PIPE);
+        }
+        errln!("error: cannot write to standard output: {e}");
+        std::process::exit(FAILED.into());
+    }
+}
+
+fn write_err(line: std::fmt::Arguments) {
+    let mut err = std::io::stderr().lock();
+    let _ = err.write_fmt(line).and_then(|()| err.write_all(b"\n"));
+}
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
@@ -187,7 +220,7 @@ fn zero_checkpoints() -> Error {
 }
 
 fn invalid(e: &Error) -> ExitCode {
-    eprintln!("error: {e}");
+    errln!("error: {e}");
     ExitCode::from(INVALID)
 }
 
@@ -197,9 +230,9 @@ fn invalid_in(scene: &Path, e: &Error) -> ExitCode {
     let message = e.to_string();
     let file = scene.display().to_string();
     if matches!(e, Error::Scene { .. } | Error::SceneSyntax { .. }) || message.contains(&file) {
-        eprintln!("error: {message}");
+        errln!("error: {message}");
     } else {
-        eprintln!("error: {file}: {message}");
+        errln!("error: {file}: {message}");
     }
     ExitCode::from(INVALID)
 }
@@ -228,8 +261,8 @@ where
         s.kinematics,
         Kinematics::PlaneStrain | Kinematics::PlaneStress
     );
-    println!("{}: valid", loaded.path.display());
-    println!(
+    outln!("{}: valid", loaded.path.display());
+    outln!(
         "  {D}D {kinematics}, h = {} s, end_time = {} s ({} steps), alpha = {}, beta = {}",
         plain(s.time_step),
         plain(scene.end_time),
@@ -241,7 +274,7 @@ where
     let mut unknowns = 0.0;
     for (b, body) in scene.bodies.iter().enumerate() {
         unknowns += (body.mesh.node_count() * D) as f64;
-        println!(
+        outln!(
             "  body `{}`: {} nodes, {} cells, mass {:.6e} {}, {} constraint(s)",
             body.name,
             body.mesh.node_count(),
@@ -255,20 +288,21 @@ where
             body.constraints.len()
         );
         if !body.damping.is_none() {
-            println!(
+            outln!(
                 "    Rayleigh damping: mass {:e} 1/s, stiffness {:e} s",
-                body.damping.mass, body.damping.stiffness
+                body.damping.mass,
+                body.damping.stiffness
             );
         }
     }
-    println!(
+    outln!(
         "  estimate: {unknowns:.0} unknowns, at least {:.1e} bytes of matrices (this machine: \
          {:.1e} bytes)",
         scene::memory_lower_bound(unknowns, D),
         scene::memory_limit()
     );
     for o in &scene.obstacles {
-        println!("  obstacle `{}`", o.name);
+        outln!("  obstacle `{}`", o.name);
     }
     if sim.detector().is_some() {
         let method = scene.contact.method;
@@ -280,23 +314,25 @@ where
         } else {
             String::new()
         };
-        println!(
+        outln!(
             "  contact: {}{penalty}, friction {}",
             method.name(),
             friction_text(&scene.contact.friction)
         );
     }
     for overlap in sim.overlaps() {
-        println!("  warning: {overlap}");
+        outln!("  warning: {overlap}");
     }
     for p in &scene.probes {
-        println!(
+        outln!(
             "  probe `{}`: body {}, node {}",
-            p.name, scene.bodies[p.body].name, p.node
+            p.name,
+            scene.bodies[p.body].name,
+            p.node
         );
     }
     for w in sim.warnings() {
-        println!("  warning: {w}");
+        outln!("  warning: {w}");
     }
     ExitCode::SUCCESS
 }
@@ -428,9 +464,9 @@ impl Interrupts {
                     }
                 });
             }
-            Err(e) => eprintln!(
-                "warning: cannot handle SIGINT and SIGTERM ({e}): they end the run at once"
-            ),
+            Err(e) => {
+                errln!("warning: cannot handle SIGINT and SIGTERM ({e}): they end the run at once")
+            }
         }
         Interrupts { stop, signal }
     }
@@ -517,11 +553,11 @@ where
     };
     if show {
         for w in warnings {
-            eprintln!("warning: {w} (also in summary.json)");
+            errln!("warning: {w} (also in summary.json)");
         }
     }
     if let Err(e) = &recorded {
-        eprintln!("error: {e}");
+        errln!("error: {e}");
     }
     match result {
         Ok(_) if recorded.is_err() => ExitCode::from(FAILED),
@@ -531,7 +567,7 @@ where
                     Some(c) => format!("resume with `softway resume {}`", out.join(c).display()),
                     None => "run with --checkpoint-every N to be able to resume".into(),
                 };
-                eprintln!(
+                errln!(
                     "interrupted at step {} (t = {:.6e} s); outputs in {}; {resume}",
                     summary.steps,
                     summary.final_time,
@@ -542,7 +578,7 @@ where
         }
         Ok(summary) => {
             if show {
-                eprintln!(
+                errln!(
                     "done: {} steps to t = {} s, {} iterations, energy drift {:.3e}, {:.2} s; outputs in {}",
                     summary.steps,
                     summary.final_time,
@@ -570,9 +606,9 @@ where
                     return invalid_in(&job.input, &failure.error);
                 }
             };
-            eprintln!("error: {}", failure.error);
+            errln!("error: {}", failure.error);
             if code == FAILED {
-                eprintln!(
+                errln!(
                     "history up to step {} written to {}",
                     failure.summary.steps,
                     out.display()

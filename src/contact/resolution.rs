@@ -39,6 +39,14 @@ pub enum ContactMethod {
 }
 
 impl ContactMethod {
+    /// Every method, in the order the scene format lists them.
+    pub const ALL: [ContactMethod; 4] = [
+        ContactMethod::SoftWay,
+        ContactMethod::ImplicitProjection,
+        ContactMethod::AugmentedLagrangian,
+        ContactMethod::ExplicitProjection,
+    ];
+
     /// The scene-file name.
     pub fn name(self) -> &'static str {
         match self {
@@ -47,6 +55,35 @@ impl ContactMethod {
             ContactMethod::AugmentedLagrangian => "augmented_lagrangian",
             ContactMethod::ExplicitProjection => "explicit_projection",
         }
+    }
+}
+
+/// Parses the scene-file name of a method (`[contact].method`: "soft_way",
+/// "implicit_projection", "augmented_lagrangian", "explicit_projection"), as
+/// [`ContactMethod::name`] writes it; anything else is [`Error::InvalidParameter`] listing the
+/// valid names.
+///
+/// ```
+/// use softway::contact::ContactMethod;
+/// assert_eq!("soft_way".parse::<ContactMethod>().unwrap(), ContactMethod::SoftWay);
+/// let e = "softway".parse::<ContactMethod>().unwrap_err();
+/// assert!(e.to_string().contains("one of soft_way, implicit_projection"));
+/// ```
+impl std::str::FromStr for ContactMethod {
+    type Err = Error;
+
+    fn from_str(s: &str) -> Result<Self> {
+        ContactMethod::ALL
+            .into_iter()
+            .find(|m| m.name() == s)
+            .ok_or_else(|| Error::InvalidParameter {
+                name: "contact method".into(),
+                found: format!("{s:?}"),
+                expected: format!(
+                    "one of {}",
+                    ContactMethod::ALL.map(ContactMethod::name).join(", ")
+                ),
+            })
     }
 }
 

@@ -144,11 +144,18 @@ where
     /// Checks every cell's Jacobian at its quadrature points and corners: an inverted or
     /// degenerate cell is an error naming the cell.
     pub fn check_quality(&self, body: &str) -> Result<()> {
-        let size = self.characteristic_length();
-        let floor = 1e-12 * size.powi(D as i32);
         let mut offset = 0;
         for block in &self.blocks {
             for (c, cell) in block.cells().enumerate() {
+                // Degenerate: a determinant below 1e-12 of the cell's own size^D (the whole
+                // mesh's size refused the small cells of a long mesh: a 1 km bar of 1 cm cubes).
+                let (mut lo, mut hi) = (self.nodes[cell[0]], self.nodes[cell[0]]);
+                for &n in cell {
+                    lo = lo.inf(&self.nodes[n]);
+                    hi = hi.sup(&self.nodes[n]);
+                }
+                let size = (hi - lo).norm().max(f64::MIN_POSITIVE);
+                let floor = 1e-12 * size.powi(D as i32);
                 let mut min_det = f64::INFINITY;
                 let points = block
                     .kind

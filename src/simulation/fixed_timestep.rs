@@ -68,6 +68,20 @@ impl FixedTimestep {
     where
         Dim<D>: SpatialDim<D>,
     {
+        self.advance_with(sim, frame_time, &mut crate::recording::NullRecorder)
+    }
+
+    /// [`FixedTimestep::advance`], every step observed by `recorder` (a Rerun recording of
+    /// the host's run: `Simulation::step_with`).
+    pub fn advance_with<const D: usize>(
+        &mut self,
+        sim: &mut Simulation<D>,
+        frame_time: f64,
+        recorder: &mut dyn crate::recording::Recorder<D>,
+    ) -> Result<FrameReport>
+    where
+        Dim<D>: SpatialDim<D>,
+    {
         if !(frame_time >= 0.0 && frame_time.is_finite()) {
             return Err(super::invalid(
                 "frame_time",
@@ -83,7 +97,7 @@ impl FixedTimestep {
         // of 1/60 s make 60 steps of 1/60 s).
         let due = |acc: f64| acc >= h * (1.0 - 1e-9);
         while due(self.accumulated) && steps < self.max_steps_per_frame {
-            last = Some(sim.step()?);
+            last = Some(sim.step_with(recorder)?);
             self.accumulated = (self.accumulated - h).max(0.0);
             steps += 1;
         }

@@ -388,6 +388,27 @@ where
         Ok(self.mass_of(self.body_index(body)?))
     }
 
+    /// Linear momentum of a body (kg m/s): the sum over its degrees of freedom of `M v`, in
+    /// the measure of [`Simulation::body_mass`] (per unit thickness in plane kinematics; the
+    /// whole revolution in axisymmetric ones, where only the axial component y is a physical
+    /// momentum: the radial sum of `M v` is not the vector sum of a ring's momenta, which is
+    /// zero). With consistent or lumped mass alike it changes over a step by the impulse of
+    /// the forces on the body.
+    pub fn body_momentum(&self, body: BodyId) -> Result<SVector<f64, D>> {
+        let nodes = self.nodes_of(self.body_index(body)?);
+        let mut p = SVector::<f64, D>::zeros();
+        let mut e = vec![0.0; self.reference.len() * D];
+        for (d, component) in p.iter_mut().enumerate() {
+            e.fill(0.0);
+            for n in nodes.clone() {
+                e[n * D + d] = 1.0;
+            }
+            *component =
+                crate::assembly::symmetric_dot(&self.matrices.mass, &e, &self.state.velocity);
+        }
+        Ok(p)
+    }
+
     /// Total mass of the body at position `index` of the model (kg).
     pub(crate) fn mass_of(&self, index: usize) -> f64 {
         let mut e = vec![0.0; self.reference.len() * D];

@@ -641,3 +641,68 @@ fn deep_penetration_is_a_warning() {
         ]
     );
 }
+
+// ---------------------------------------------------------------------------------------------
+// Standard output and error closed by their reader (`softway check SCENE | head -1`).
+
+/// `check` with its standard output a pipe whose reader is already gone: no panic, status 141
+/// (128 + SIGPIPE, as a program that SIGPIPE ends), nothing on standard error.
+#[test]
+fn check_into_a_closed_pipe_ends_quietly() {
+    let file = repo().join("fixtures/scenes/ring_drop.toml");
+    let (reader, writer) = std::io::pipe().unwrap();
+    drop(reader);
+    let o = softway()
+        .args(["check", file.to_str().unwrap()])
+        .stdout(writer)
+        .stderr(Stdio::piped())
+        .output()
+        .expect("the softway binary runs");
+    let err = stderr(&o);
+    assert!(!err.contains("panicked"), "{err}");
+    assert_eq!(err, "");
+    assert_eq!(o.status.code(), Some(141), "{err}");
+}
+
+/// `softway check SCENE | head -1`: the first line arrives; then the reader goes away, before
+/// or after the rest is written (status 141 or 0), never a panic.
+#[test]
+fn check_piped_into_head_does_not_panic() {
+    use std::io::{BufRead, BufReader};
+    let file = repo().join("fixtures/scenes/ring_drop.toml");
+    let mut child = softway()
+        .args(["check", file.to_str().unwrap()])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("the softway binary runs");
+    let mut first = String::new();
+    BufReader::new(child.stdout.take().unwrap())
+        .read_line(&mut first)
+        .unwrap();
+    assert!(first.ends_with("ring_drop.toml: valid\n"), "{first:?}");
+    let o = child.wait_with_output().unwrap();
+    let err = stderr(&o);
+    assert!(!err.contains("panicked"), "{err}");
+    assert!(
+        matches!(o.status.code(), Some(0 | 141)),
+        "{:?}: {err}",
+        o.status
+    );
+}
+
+/// An error message into a closed standard error: the status stays 2 (a panic would be 101).
+#[test]
+fn error_into_a_closed_stderr_keeps_its_status() {
+    let file = bad("alpha_above_one");
+    let (reader, writer) = std::io::pipe().unwrap();
+    drop(reader);
+    let o = softway()
+        .args(["check", file.to_str().unwrap()])
+        .stdout(Stdio::piped())
+        .stderr(writer)
+        .output()
+        .expect("the softway binary runs");
+    assert_eq!(o.status.code(), Some(2), "{:?}", o.status);
+    assert_eq!(stdout(&o), "");
+}

@@ -737,8 +737,8 @@ fn booked_energy_growth_is_a_warning_in_the_summary() {
 }
 
 // ---------------------------------------------------------------------------------------------
-// --rerun (feature `rerun`): the recording is written next to the outputs; a file that cannot
-// be created is invalid input (nothing run, nothing written).
+// --rerun (feature `rerun`): the recording is written next to the outputs, its missing parent
+// folders created (as --out is); a file that cannot be created is invalid input (nothing run).
 
 #[cfg(feature = "rerun")]
 #[test]
@@ -754,10 +754,25 @@ fn rerun_recording_is_written() {
     assert_eq!(&bytes[..4], b"RRF2");
     assert!(work.join("out/tiny/history.csv").is_file());
 
+    // The folders of the recording are created as --out's are.
+    let o = run_in(
+        &work,
+        &["run", path, "--rerun", "new/sub/run.rrd", "--quiet"],
+    );
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let bytes = fs::read(work.join("new/sub/run.rrd")).unwrap();
+    assert_eq!(&bytes[..4], b"RRF2");
+    assert_eq!(entries(&work.join("new/sub")), ["run.rrd"]);
+
+    // A folder that cannot be created (a file is in the way).
     let empty = dir.path().join("empty");
     fs::create_dir(&empty).unwrap();
-    let err = assert_invalid(&empty, &["run", path, "--rerun", "no/such/dir/run.rrd"]);
-    assert!(err.contains("no/such/dir/run.rrd"), "{err}");
+    let blocked = scene.join("run.rrd");
+    let err = assert_invalid(&empty, &["run", path, "--rerun", blocked.to_str().unwrap()]);
+    assert!(
+        err.starts_with(&format!("error: cannot write {path}: ")),
+        "{err}"
+    );
 }
 
 // ---------------------------------------------------------------------------------------------

@@ -296,22 +296,20 @@ impl LoadedScene {
 
     fn check_contact(&self) -> Result<ContactSettings> {
         let c = &self.file.contact;
-        const METHODS: [&str; 4] = [
-            "soft_way",
-            "implicit_projection",
-            "augmented_lagrangian",
-            "explicit_projection",
-        ];
-        if !METHODS.contains(&c.method.as_str()) {
+        let Ok(method) = c.method.parse::<ContactMethod>() else {
+            let names = ContactMethod::ALL.map(ContactMethod::name);
             return Err(self.error(
                 "contact.method",
                 format!("\"{}\"", c.method),
-                format!("one of {METHODS:?}"),
+                format!("one of {names:?}"),
             ));
-        }
+        };
         if let Some(p) = c.penalty {
             self.positive("contact.penalty", p, "Pa/m")?;
-        } else if matches!(c.method.as_str(), "soft_way" | "augmented_lagrangian") {
+        } else if matches!(
+            method,
+            ContactMethod::SoftWay | ContactMethod::AugmentedLagrangian
+        ) {
             return Err(self.error(
                 "contact.penalty",
                 "nothing",
@@ -319,12 +317,6 @@ impl LoadedScene {
             ));
         }
         self.positive("contact.gap_tolerance", c.gap_tolerance, "m")?;
-        let method = match c.method.as_str() {
-            "soft_way" => ContactMethod::SoftWay,
-            "augmented_lagrangian" => ContactMethod::AugmentedLagrangian,
-            "explicit_projection" => ContactMethod::ExplicitProjection,
-            _ => ContactMethod::ImplicitProjection,
-        };
         let friction = self.friction("contact.friction", &c.friction)?;
         let any_friction = friction != FrictionLaw::Frictionless
             || self.file.obstacles.iter().any(|o| {

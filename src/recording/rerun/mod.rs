@@ -95,6 +95,9 @@ where
     iteration: i64,
     bodies: Option<Vec<BodyDraw>>,
     obstacles: Vec<Obstacle<D>>,
+    /// Obstacles the host already moves (state velocity) when the recording starts: drawn
+    /// every step like scheduled ones.
+    host_moved: Vec<bool>,
     probes: Vec<ProbeDraw>,
     /// von Mises stress of every cell of the committed state (Pa).
     mises: Vec<f64>,
@@ -120,10 +123,17 @@ impl<const D: usize> RerunRecorder<D>
 where
     Dim<D>: SpatialDim<D>,
 {
-    /// Records into the `.rrd` file at `path` (created or truncated). Call
-    /// [`RerunRecorder::finish`] at the end to write the file's footer.
+    /// Records into the `.rrd` file at `path` (created or truncated, its missing parent folders
+    /// created, as the output folder of a run is). Call [`RerunRecorder::finish`] at the end to
+    /// write the file's footer.
     pub fn to_file(path: impl AsRef<Path>) -> Result<Self> {
         let path = path.as_ref();
+        if let Some(parent) = path.parent().filter(|p| !p.as_os_str().is_empty()) {
+            std::fs::create_dir_all(parent).map_err(|source| Error::Output {
+                file: parent.to_path_buf(),
+                source,
+            })?;
+        }
         let rec = builder().save(path).map_err(|e| Error::Output {
             file: path.to_path_buf(),
             source: std::io::Error::other(e.to_string()),
@@ -167,6 +177,7 @@ where
             color_field: ColorField::default(),
             iteration: 0,
             bodies: None,
+            host_moved: Vec::new(),
             obstacles: Vec::new(),
             probes: Vec::new(),
             mises: Vec::new(),
@@ -281,6 +292,7 @@ where
         }
         let bodies = self.setup_scene(sim);
         self.log_series_styles();
+        self.host_moved = host_moved(sim);
         self.log_fixed_obstacles();
         self.bodies = Some(bodies);
         // The initial state, at step 0 / iteration 0.
@@ -298,6 +310,7 @@ where
             return;
         }
         self.setup(sim);
+        self.follow_bodies(sim);
         // The committed state does not change during the step.
         if self.color_field == ColorField::VonMises {
             self.mises = sim.cell_stresses().iter().map(von_mises).collect();
@@ -369,6 +382,23 @@ where
         }
         self.log_text(TextLogLevel::WARN, message.to_string());
     }
+}
+
+/// Per obstacle: whether the state gives it a velocity or an angular velocity (a host that
+/// poses it with `set_obstacle_next_pose`).
+fn host_moved<const D: usize>(sim: &Simulation<D>) -> Vec<bool>
+where
+    Dim<D>: SpatialDim<D>,
+{
+    let state = sim.state();
+    let a = <Dim<D>>::ANGULAR;
+    (0..sim.obstacles().len())
+        .map(|k| {
+            let v = state.obstacle_velocities.get(k * D..k * D + D);
+            let w = state.obstacle_angular_velocities.get(k * a..k * a + a);
+            v.into_iter().chain(w).flatten().any(|x| *x != 0.0)
+        })
+        .collect()
 }
 
 fn builder() -> RecordingStreamBuilder {

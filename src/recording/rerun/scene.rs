@@ -4,7 +4,7 @@
 use std::ops::Range;
 
 use nalgebra::SVector;
-use re_sdk_types::archetypes::{LineStrips2D, Mesh3D, Points2D, Points3D, ViewCoordinates};
+use re_sdk_types::archetypes::{Clear, LineStrips2D, Mesh3D, Points2D, Points3D, ViewCoordinates};
 use re_sdk_types::components::{Color, Radius};
 
 use super::colors::colormap;
@@ -96,10 +96,40 @@ where
         bodies
     }
 
-    /// Whether obstacle `o` moves (a velocity, an angular velocity or a motion schedule).
+    /// Bodies added or removed between steps (a host's spawn and despawn): the drawing data
+    /// is rebuilt and the removed bodies' entities are cleared.
+    pub(super) fn follow_bodies(&mut self, sim: &Simulation<D>) {
+        let Some(drawn) = &self.bodies else {
+            return;
+        };
+        let bodies = sim.bodies();
+        let same = drawn.len() == bodies.len()
+            && drawn
+                .iter()
+                .enumerate()
+                .all(|(b, d)| d.name == bodies[b].name && d.nodes == sim.nodes_of(b));
+        if same {
+            return;
+        }
+        let gone: Vec<String> = drawn
+            .iter()
+            .filter(|d| !bodies.iter().any(|b| b.name == d.name))
+            .map(|d| d.name.clone())
+            .collect();
+        for name in gone {
+            let r = self.rec.log(format!("bodies/{name}"), &Clear::recursive());
+            self.check(r);
+        }
+        let redrawn = self.setup_scene(sim);
+        self.bodies = Some(redrawn);
+    }
+
+    /// Whether obstacle `o` moves (a velocity, an angular velocity or a motion schedule, or
+    /// a host that poses it from the first step).
     pub(super) fn obstacle_moves(&self, o: usize) -> bool {
         let obstacle = &self.obstacles[o];
-        !obstacle.motion.is_empty()
+        self.host_moved.get(o).copied().unwrap_or(false)
+            || !obstacle.motion.is_empty()
             || obstacle.velocity.iter().any(|v| *v != 0.0)
             || obstacle.angular_velocity.iter().any(|w| *w != 0.0)
     }
@@ -157,7 +187,9 @@ where
             v.iter().map(|x| x * x).sum::<f64>().sqrt()
         };
         for body in &bodies {
-            let positions = &info.end_positions[body.nodes.clone()];
+            let Some(positions) = info.end_positions.get(body.nodes.clone()) else {
+                continue; // not this simulation's bodies (cannot happen after follow_bodies)
+            };
             let cell_value: Vec<f64> = match self.color_field {
                 ColorField::VonMises => body
                     .cells
