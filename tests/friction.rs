@@ -294,12 +294,15 @@ fn ring_drop_with_coulomb_friction(method: &str) {
          frictionless: {per_step_0:.2} (at most {most_0}), energy error {error_0:.3e}"
     );
     assert!(steps > 10, "the ring never landed");
-    // Against the frictionless run: implicit projection books its end-of-step projection in
-    // the dissipated energy too.
-    assert!(
-        dissipated - dissipated_0 > 0.0,
-        "no friction dissipation: {dissipated} J against {dissipated_0} J frictionless"
-    );
+    // Implicit projection books its end-of-step projection in the dissipated energy too
+    // (negative where it puts energy in), so friction's share cannot be read from the total
+    // there; its account is checked below.
+    if method != "implicit_projection" {
+        assert!(
+            dissipated - dissipated_0 > 0.0,
+            "no friction dissipation: {dissipated} J against {dissipated_0} J frictionless"
+        );
+    }
     // The account's error is each method's own (frictionless: soft way 1.38e-2, augmented
     // Lagrangian 2.17e-2, implicit projection 4.55e-2 of the reference, measured); friction
     // adds at most 2e-4 under the penalty methods and 7.9e-3 under implicit projection, whose

@@ -30,6 +30,12 @@ type Constraint = (Vec<(usize, f64)>, f64, f64);
 /// The penalty that imposes the projection, relative to the largest diagonal of its rows.
 const PENALTY: f64 = 1e4;
 
+/// Whether a rigid translation of each body comes first. Off: on the soft cube it took the
+/// energy created after the landing from 0.98 to 0.21 of the input, but the bundled gripper
+/// (a block on a floor between closing jaws) stopped converging at step 108 with it, even
+/// restricted to bodies near one obstacle only (the book's contact chapter, Limits).
+const RIGID_PART: bool = false;
+
 /// Whether the rigid part includes small rotations (else translations only: with rotations
 /// a contact patch of a few nearly collinear points gave large turns, and a block on a slope
 /// stopped converging).
@@ -57,6 +63,14 @@ where
         // The obstacle pairs, for the rigid part: (slave, normal, gap).
         let mut obstacle_rows: Vec<(usize, SVector<f64, D>, f64)> = Vec::new();
         let diagonal = self.system_diagonal().to_vec();
+        // The obstacles each node is near (any gap): a body near two takes no rigid part.
+        let near: Vec<(usize, usize)> = pairs
+            .iter()
+            .filter_map(|p| match p.master {
+                Master::Obstacle(k) => Some((p.slave, k)),
+                Master::Facet(_) => None,
+            })
+            .collect();
         for p in pairs {
             // Every penetrating point: an active one is held on its master, a free one is
             // leaving it (it penetrates while it separates) and is moved out with the rest.
@@ -84,7 +98,11 @@ where
             return Ok(vec![0.0; ndof]);
         }
         // The rigid part first: it strains nothing.
-        let rigid = self.rigid_projection(&obstacle_rows, positions);
+        let rigid = if RIGID_PART {
+            self.rigid_projection(&obstacle_rows, &near, positions)
+        } else {
+            vec![0.0; ndof]
+        };
         for row in &mut rows {
             row.1 += row.0.iter().map(|&(i, a)| a * rigid[i]).sum::<f64>();
         }
@@ -133,13 +151,15 @@ where
         Ok(du)
     }
 
-    /// The rigid motion of each body (translation and small rotation about the mean contact
-    /// point) that best removes its penetrations into obstacles, in the least-squares sense
-    /// (minimum norm where the contacts leave it free: along a flat floor, about its normal).
+    /// The rigid motion of each body (translation, and small rotation about the mean contact
+    /// point if [`ROTATIONS`]) that best removes its penetrations into obstacles, in the
+    /// least-squares sense (minimum norm where the contacts leave it free: along a flat floor),
+    /// shortened so that no point passes its master, and only where it moves every point out.
     /// Bodies with prescribed components take none.
     fn rigid_projection(
         &self,
         obstacle_rows: &[(usize, SVector<f64, D>, f64)],
+        near: &[(usize, usize)],
         positions: &[SVector<f64, D>],
     ) -> Vec<f64> {
         let ndof = self.nodal_mass.len() * D;
@@ -154,7 +174,9 @@ where
                 .iter()
                 .filter(|r| nodes.contains(&r.0))
                 .collect();
-            if rows.is_empty() {
+            let mut obstacles = near.iter().filter(|(n, _)| nodes.contains(n)).map(|p| p.1);
+            let first = obstacles.next();
+            if rows.is_empty() || obstacles.any(|k| Some(k) != first) {
                 continue;
             }
             let centre = rows
@@ -190,6 +212,13 @@ where
             // No point is moved past its master: the least-squares motion is shortened until
             // the least penetrating point just reaches it (the rest is the elastic part's).
             let moved = &a * &q;
+            // Only where it moves every point outwards (a body landing on one surface), not
+            // between surfaces that face each other (a block between jaws): there it would
+            // push the other side deeper in.
+            let largest_move = moved.amax();
+            if moved.iter().any(|m| *m < -1e-9 * largest_move) {
+                continue;
+            }
             let scale = rows
                 .iter()
                 .zip(moved.iter())

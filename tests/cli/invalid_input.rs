@@ -218,6 +218,13 @@ fn out_of_range_numbers() {
             "soft_way",
         ),
         (
+            "projection_unknown",
+            "contact.projection",
+            "projection = \"midpoint\"",
+            "\"midpoint\"",
+            "\"step\" or \"node\"",
+        ),
+        (
             "contact_penalty_negative",
             "contact.penalty",
             "penalty = -1.0e9",

@@ -11,7 +11,9 @@ use super::schema::{
 };
 use super::{LoadedScene, OutputOptions, Probe, Scene};
 use crate::contact::resolution::DEFAULT_REGULARIZATION;
-use crate::contact::{ContactMethod, ContactSettings, FrictionLaw, GapDisplacement};
+use crate::contact::{
+    ContactMethod, ContactSettings, FrictionLaw, GapDisplacement, ProjectionMetric,
+};
 use crate::dim::{Dim, Kinematics, SpatialDim};
 use crate::error::{Error, Result};
 use crate::material::{Hypoelastic, LinearElastic, Material, NortonHoff, RotationUpdate};
@@ -343,6 +345,17 @@ impl LoadedScene {
                 ))
             }
         };
+        let projection = match c.projection.as_deref() {
+            None | Some("step") => ProjectionMetric::Step,
+            Some("node") => ProjectionMetric::Node,
+            Some(other) => {
+                return Err(self.error(
+                    "contact.projection",
+                    format!("\"{other}\""),
+                    "\"step\" or \"node\"",
+                ))
+            }
+        };
         Ok(ContactSettings {
             method,
             penalty: c.penalty.unwrap_or(0.0),
@@ -350,6 +363,7 @@ impl LoadedScene {
             gap_tolerance: c.gap_tolerance,
             friction,
             gap_displacement,
+            projection,
             ..ContactSettings::default()
         })
     }

@@ -151,6 +151,9 @@ pub struct ContactSection {
     /// "configuration" | "trapezoid".
     #[serde(default)]
     pub gap_displacement: Option<String>,
+    /// Implicit projection's end-of-step projection: "step" | "node".
+    #[serde(default)]
+    pub projection: Option<String>,
 }
 
 fn default_method() -> String {
@@ -166,6 +169,7 @@ impl Default for ContactSection {
             gap_tolerance: default_gap_tolerance(),
             friction: FrictionSpec::Frictionless,
             gap_displacement: None,
+            projection: None,
         }
     }
 }
