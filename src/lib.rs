@@ -49,6 +49,8 @@ pub mod element;
 pub mod error;
 pub mod friction;
 pub mod geometry;
+#[doc(hidden)]
+pub mod instantiations;
 #[cfg(feature = "formats")]
 pub mod io;
 pub mod material;

@@ -19,11 +19,13 @@ const LEAKS: [&str; 6] = [
     "{ index",
 ];
 
-fn clean(message: String) {
+/// `input` is the scene text: a parse error quotes the offending line, so a leak counts only
+/// when the input does not hold the same text.
+fn clean(message: String, input: &str) {
     assert!(!message.trim().is_empty(), "an empty error message");
     for leak in LEAKS {
         assert!(
-            !message.contains(leak),
+            !message.contains(leak) || input.contains(leak),
             "the message shows `{leak}`: {message}"
         );
     }
@@ -65,6 +67,6 @@ fuzz_target!(|data: &[u8]| {
             },
         );
     if let Err(message) = outcome {
-        clean(message);
+        clean(message, &text);
     }
 });
