@@ -149,6 +149,8 @@ struct Outcome {
     /// Velocity of the centre of mass at the end [m/s].
     exit_velocity: f64,
     steps: usize,
+    /// Newton iterations per step (softway only).
+    iterations: Option<f64>,
 }
 
 impl Outcome {
@@ -174,6 +176,7 @@ impl Outcome {
             energy_ratio,
             exit_velocity,
             steps: forces.len(),
+            iterations: None,
         }
     }
 
@@ -247,14 +250,17 @@ fn softway_once(method: ContactMethod, h: f64) -> Result<(Outcome, f64), Failure
     let mass = sim.mass_matrix().dot(&ones, &ones);
     let end = end_time(h);
     let mut forces = Vec::new();
+    let mut iterations = 0;
     let start = Instant::now();
     while sim.state().time < end {
         let report = sim.step()?;
         forces.push(-report.contact_forces[0][0]);
+        iterations += report.iterations;
     }
     let seconds = start.elapsed().as_secs_f64();
     let exit = sim.mass_matrix().dot(&ones, &sim.state().velocity) / mass;
-    let outcome = Outcome::from_forces(&forces, h, sim.energies().total() / e0, exit);
+    let mut outcome = Outcome::from_forces(&forces, h, sim.energies().total() / e0, exit);
+    outcome.iterations = Some(iterations as f64 / forces.len() as f64);
     Ok((outcome, seconds))
 }
 
@@ -411,13 +417,13 @@ fn print(s: &Summary) {
     );
     println!();
     println!(
-        "| scheme | k = h / h_crit | steps | wall time [ms] | duration error | force error | energy error | exit velocity error |"
+        "| scheme | k = h / h_crit | steps | wall time [ms] | duration error | force error | energy error | exit velocity error | Newton iterations / step |"
     );
-    println!("|---|---|---|---|---|---|---|---|");
+    println!("|---|---|---|---|---|---|---|---|---|");
     for r in &s.runs {
         match &r.outcome {
             Ok(o) => println!(
-                "| {} | {} | {} | {:.3} | {:+.3} % | {:+.3} % | {:+.3} % | {:+.3} % |",
+                "| {} | {} | {} | {:.3} | {:+.3} % | {:+.3} % | {:+.3} % | {:+.3} % | {} |",
                 r.scheme.label(),
                 r.k,
                 o.steps,
@@ -425,10 +431,11 @@ fn print(s: &Summary) {
                 100.0 * o.duration_error(),
                 100.0 * o.force_error(),
                 100.0 * o.energy_error(),
-                100.0 * o.exit_error()
+                100.0 * o.exit_error(),
+                o.iterations.map_or("-".into(), |i| format!("{i:.2}"))
             ),
             Err(e) => println!(
-                "| {} | {} | - | - | failed: {} | | | |",
+                "| {} | {} | - | - | failed: {} | | | | |",
                 r.scheme.label(),
                 r.k,
                 e.replace('\n', " ")
@@ -559,10 +566,10 @@ fn draw(s: &Summary, path: &Path) -> Result<(), Failure> {
                     .iter()
                     .map(|p| Circle::new((p.0, p.1), 4, color.filled())),
             )?;
-            // k next to the soft way's and Newmark's points.
+            // k next to the points of the baselines, the default method and the soft way.
             if matches!(
                 scheme,
-                Scheme::Softway(ContactMethod::SoftWay)
+                Scheme::Softway(ContactMethod::SoftWay | ContactMethod::ImplicitProjection)
                     | Scheme::Newmark
                     | Scheme::CentralDifference
             ) {
@@ -577,7 +584,7 @@ fn draw(s: &Summary, path: &Path) -> Result<(), Failure> {
         }
         chart
             .configure_series_labels()
-            .position(SeriesLabelPosition::UpperRight)
+            .position(SeriesLabelPosition::LowerRight)
             .background_style(WHITE.mix(0.9))
             .border_style(BLACK)
             .label_font(("sans-serif", 14))
@@ -667,6 +674,9 @@ fn main() -> std::process::ExitCode {
     let default_svg =
         Path::new(env!("CARGO_MANIFEST_DIR")).join("book/src/images/work_precision.svg");
     let options = Args::parse(&["--reps", "--svg"], usage).and_then(|args| {
+        if args.get::<String>("--rerun")?.is_some() {
+            return Err("work_precision records nothing: `--rerun` is not an option here".into());
+        }
         Ok(Options {
             reps: args.get("--reps")?.unwrap_or(5),
             ks: KS.to_vec(),
