@@ -34,7 +34,8 @@
 //!   and pumps energy in at the release; that variant is also run ("Newmark, position only")
 //!   to show it.
 //!
-//! Measured per run: wall time (median of `--reps` repetitions, `std::time::Instant`; the
+//! Measured per run: wall time (median of `--reps` repetitions, taken in rounds over every
+//! run so that a burst of load spreads over the sides; `std::time::Instant`; the
 //! stepping only, with softway's first factorisation and the baselines' factorisation inside,
 //! the assembly of M and K outside for every side), the contact duration (steps with a wall
 //! force times h) against 2 L / c, the mean wall force over the contact steps (the first and
@@ -48,7 +49,10 @@
 //! Drawn: `book/src/images/work_precision.svg` (or `--svg FILE`): error against wall time,
 //! log-log, duration and force.
 //!
-//! Run: `cargo run --release --example work_precision [-- --reps 7] [--svg FILE.svg]`.
+//! Run: `cargo run --release --example work_precision [-- --reps 7] [--svg FILE.svg]` (the
+//! book's figures: `cargo run --release --no-default-features --features parallel --example
+//! work_precision -- --reps 7`, the same program without building the unused `rerun`
+//! recorder; the book's Performance chapter has them and why softway loses here).
 //! Its test (a few runs, the physics checked, the figure drawn to a temporary file):
 //! `cargo test --example work_precision`.
 
@@ -82,8 +86,9 @@ const CELLS: usize = 100;
 const KS: [f64; 6] = [1.0, 2.0, 5.0, 10.0, 20.0, 50.0];
 /// Central difference runs at this fraction of h_crit.
 const CD_FACTOR: f64 = 0.9;
-/// Errors drawn on the log axes are clamped to this (an exact 0 has no logarithm).
-const ERROR_FLOOR: f64 = 1e-5;
+/// Errors drawn on the log axes are clamped to this (an exact 0 has no logarithm: the quantised
+/// duration often lands on 2 L / c).
+const ERROR_FLOOR: f64 = 1e-3;
 
 /// The softway contact methods, the default (implicit projection) first.
 const METHODS: [ContactMethod; 4] = [
@@ -264,25 +269,6 @@ fn softway_once(method: ContactMethod, h: f64) -> Result<(Outcome, f64), Failure
     Ok((outcome, seconds))
 }
 
-/// Runs `once` `reps` times: the last outcome and the median time.
-fn timed(
-    reps: usize,
-    mut once: impl FnMut() -> Result<(Outcome, f64), Failure>,
-) -> (f64, Result<Outcome, String>) {
-    let mut times = Vec::new();
-    let mut outcome = Err("not run".to_string());
-    for _ in 0..reps.max(1) {
-        match once() {
-            Ok((o, s)) => {
-                times.push(s);
-                outcome = Ok(o);
-            }
-            Err(e) => return (f64::NAN, Err(e.to_string())),
-        }
-    }
-    (median(times), outcome)
-}
-
 /// What the program is asked to do.
 #[derive(Debug, Clone)]
 struct Options {
@@ -304,54 +290,80 @@ struct Summary {
     lumped_stable_step: f64,
 }
 
+/// One run of one job: what it measured and the seconds it took.
+type Job<'a> = Box<dyn Fn() -> Result<(Outcome, f64), Failure> + 'a>;
+
+/// A baseline's run, timed as a whole.
+fn baseline<'a>(f: impl Fn() -> Outcome + 'a) -> Job<'a> {
+    Box::new(move || {
+        let start = Instant::now();
+        let o = f();
+        Ok((o, start.elapsed().as_secs_f64()))
+    })
+}
+
 fn run(options: &Options) -> Result<Summary, Failure> {
     let d = Discrete::new()?;
     let hc = h_crit();
-    let mut runs = Vec::new();
-    // Interleaved per k, so that a drift of the machine's load spreads over every side.
+    // Every run, then `reps` rounds over all of them: a burst of the machine's load lands on
+    // one repetition of several runs, not on every repetition of one (the median drops it).
+    let mut jobs: Vec<(Scheme, f64, f64, Job)> = Vec::new();
     let h = CD_FACTOR * hc;
-    let (seconds, outcome) = timed(options.reps, || {
-        let start = Instant::now();
-        let o = central_difference(&d, h);
-        Ok((o, start.elapsed().as_secs_f64()))
-    });
-    runs.push(Run {
-        scheme: Scheme::CentralDifference,
-        k: CD_FACTOR,
-        h,
-        seconds,
-        outcome,
-    });
+    let d = &d;
+    let cd = baseline(move || central_difference(d, h));
+    jobs.push((Scheme::CentralDifference, CD_FACTOR, h, cd));
     for &k in &options.ks {
         let h = k * hc;
         for (scheme, reset) in [
             (Scheme::Newmark, true),
             (Scheme::NewmarkPositionOnly, false),
         ] {
-            let (seconds, outcome) = timed(options.reps, || {
-                let start = Instant::now();
-                let o = newmark(&d, h, reset);
-                Ok((o, start.elapsed().as_secs_f64()))
-            });
-            runs.push(Run {
-                scheme,
-                k,
-                h,
-                seconds,
-                outcome,
-            });
+            jobs.push((scheme, k, h, baseline(move || newmark(d, h, reset))));
         }
         for &method in &options.methods {
-            let (seconds, outcome) = timed(options.reps, || softway_once(method, h));
-            runs.push(Run {
-                scheme: Scheme::Softway(method),
+            jobs.push((
+                Scheme::Softway(method),
                 k,
                 h,
-                seconds,
-                outcome,
-            });
+                Box::new(move || softway_once(method, h)),
+            ));
         }
     }
+    let mut times: Vec<Vec<f64>> = vec![Vec::new(); jobs.len()];
+    let mut outcomes: Vec<Result<Outcome, String>> = vec![Err("not run".into()); jobs.len()];
+    for _ in 0..options.reps.max(1) {
+        for (i, (_, _, _, job)) in jobs.iter().enumerate() {
+            if outcomes[i].is_err() && !times[i].is_empty() {
+                continue;
+            }
+            match job() {
+                Ok((o, seconds)) => {
+                    times[i].push(seconds);
+                    outcomes[i] = Ok(o);
+                }
+                Err(e) => {
+                    times[i].push(f64::NAN);
+                    outcomes[i] = Err(e.to_string());
+                }
+            }
+        }
+    }
+    let runs = jobs
+        .iter()
+        .zip(times)
+        .zip(outcomes)
+        .map(|(((scheme, k, h, _), times), outcome)| Run {
+            scheme: *scheme,
+            k: *k,
+            h: *h,
+            seconds: if outcome.is_ok() {
+                median(times)
+            } else {
+                f64::NAN
+            },
+            outcome,
+        })
+        .collect();
     let summary = Summary {
         runs,
         lumped_stable_step: d.lumped_stable_step(),
@@ -513,7 +525,8 @@ fn draw(s: &Summary, path: &Path) -> Result<(), Failure> {
         .map(|(r, _)| r.seconds)
         .fold(f64::INFINITY, f64::min)
         / 1.5;
-    let t_hi = ok.iter().map(|(r, _)| r.seconds).fold(0.0, f64::max) * 1.5;
+    // Room on the right for the legend.
+    let t_hi = ok.iter().map(|(r, _)| r.seconds).fold(0.0, f64::max) * 60.0;
     let root = SVGBackend::new(path, (900, 1000)).into_drawing_area();
     root.fill(&WHITE)?;
     let (top, bottom) = root.split_vertically(500);
@@ -584,7 +597,7 @@ fn draw(s: &Summary, path: &Path) -> Result<(), Failure> {
         }
         chart
             .configure_series_labels()
-            .position(SeriesLabelPosition::LowerRight)
+            .position(SeriesLabelPosition::UpperRight)
             .background_style(WHITE.mix(0.9))
             .border_style(BLACK)
             .label_font(("sans-serif", 14))
