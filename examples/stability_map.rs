@@ -29,7 +29,7 @@ mod common;
 
 use std::path::{Path, PathBuf};
 
-use common::run::{Args, Failure};
+use common::run::{conclude, Args, Failure};
 use nalgebra::Matrix2;
 use softway::time::{Beta, SpaceTimeScheme};
 
@@ -498,25 +498,14 @@ fn main() -> std::process::ExitCode {
         })
     });
     print_table();
-    match options.and_then(|o| run(&o).map(|s| (o, s))) {
-        Err(e) => {
-            eprintln!("stability_map: {e}");
-            std::process::ExitCode::from(2)
+    let outcome = options.and_then(|o| run(&o).map(|s| (o, s)));
+    let print_and_name = |(o, s): &(Options, Summary)| {
+        print(s);
+        if let Some(svg) = &o.svg {
+            println!("drew {}", svg.display());
         }
-        Ok((o, s)) => {
-            print(&s);
-            if let Some(svg) = &o.svg {
-                println!("drew {}", svg.display());
-            }
-            match check(&s) {
-                Ok(()) => std::process::ExitCode::SUCCESS,
-                Err(e) => {
-                    eprintln!("stability_map FAILED:\n{e}");
-                    std::process::ExitCode::FAILURE
-                }
-            }
-        }
-    }
+    };
+    conclude("stability_map", outcome, print_and_name, |(_, s)| check(s))
 }
 
 #[cfg(test)]

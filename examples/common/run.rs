@@ -145,8 +145,8 @@ where
 pub fn conclude<S>(
     name: &str,
     outcome: Result<S, Failure>,
-    print: fn(&S),
-    check: fn(&S) -> Result<(), String>,
+    print: impl Fn(&S),
+    check: impl Fn(&S) -> Result<(), String>,
 ) -> std::process::ExitCode {
     match outcome {
         Err(e) => {

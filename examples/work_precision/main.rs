@@ -68,7 +68,7 @@ use std::time::Instant;
 
 use baselines::{central_difference, newmark, Discrete};
 use common::median;
-use common::run::{Args, Failure};
+use common::run::{conclude, Args, Failure};
 use nalgebra::Vector2;
 use softway::prelude::*;
 
@@ -697,25 +697,14 @@ fn main() -> std::process::ExitCode {
             svg: Some(args.get("--svg")?.unwrap_or(default_svg)),
         })
     });
-    match options.and_then(|o| run(&o).map(|s| (o, s))) {
-        Err(e) => {
-            eprintln!("work_precision: {e}");
-            std::process::ExitCode::from(2)
+    let outcome = options.and_then(|o| run(&o).map(|s| (o, s)));
+    let print_and_name = |(o, s): &(Options, Summary)| {
+        print(s);
+        if let Some(svg) = &o.svg {
+            println!("drew {}", svg.display());
         }
-        Ok((o, s)) => {
-            print(&s);
-            if let Some(svg) = &o.svg {
-                println!("drew {}", svg.display());
-            }
-            match check(&s) {
-                Ok(()) => std::process::ExitCode::SUCCESS,
-                Err(e) => {
-                    eprintln!("work_precision FAILED:\n{e}");
-                    std::process::ExitCode::FAILURE
-                }
-            }
-        }
-    }
+    };
+    conclude("work_precision", outcome, print_and_name, |(_, s)| check(s))
 }
 
 #[cfg(test)]
