@@ -6,12 +6,12 @@
 mod common;
 
 use common::{block, energy_error, vec_d};
-use softway::contact::{ContactMethod, ContactSettings, Obstacle, ObstacleShape};
+use softway::contact::{ContactMethod, ContactSettings, GapDisplacement, Obstacle, ObstacleShape};
 use softway::dim::{Dim, SpatialDim};
 use softway::prelude::*;
 
 /// The largest penetration over the run and the energy error at its end.
-fn stack<const D: usize>(method: ContactMethod) -> (f64, f64)
+fn stack<const D: usize>(method: ContactMethod, gaps: GapDisplacement) -> (f64, f64)
 where
     Dim<D>: SpatialDim<D>,
 {
@@ -47,6 +47,7 @@ where
         .contact(ContactSettings {
             method,
             penalty: 1e9,
+            gap_displacement: gaps,
             ..ContactSettings::default()
         })
         .build()
@@ -60,7 +61,7 @@ where
     }
     let error = energy_error(&sim);
     eprintln!(
-        "{D}D {method:?} stack: largest penetration {penetration:.3e} m, energy error {error:.2e}"
+        "{D}D {method:?} stack, {gaps:?} gaps: largest penetration {penetration:.3e} m, energy error {error:.2e}"
     );
     (penetration, error)
 }
@@ -69,7 +70,7 @@ fn a_stack_of_soft_blocks_lands_and_settles<const D: usize>()
 where
     Dim<D>: SpatialDim<D>,
 {
-    let (penetration, error) = stack::<D>(ContactMethod::SoftWay);
+    let (penetration, error) = stack::<D>(ContactMethod::SoftWay, GapDisplacement::Configuration);
     assert!(error < 2e-2, "energy error {error}");
     // Measured 3.6e-4 m (2D) and 1.05e-3 m (3D): far above the penalty's own pressure / zeta
     // (3e-6 m at the bottom of the stack), an open defect (book, contact chapter); with one
@@ -77,19 +78,44 @@ where
     assert!(penetration < 2e-3, "penetration {penetration}");
 }
 
-both_dims!(a_stack_of_soft_blocks_lands_and_settles);
+/// The same stack with the penalty's gaps measured on the running eq 22 displacement
+/// (`GapDisplacement::Trapezoid`): the configuration no longer stores a step's travel inside
+/// the other body. Measured 3.1e-5 m (2D) and 5.3e-5 m (3D), ten to twenty times less than
+/// with the paper's configuration gaps, still ten times the static pressure / zeta (the
+/// landing's dynamic pressure); the account loses 2.3e-2 / 1.7e-2 of the reference (the
+/// end-of-step penalty's dissipation, book, contact chapter).
+fn trapezoid_gaps_keep_the_stack_apart<const D: usize>()
+where
+    Dim<D>: SpatialDim<D>,
+{
+    let (penetration, error) = stack::<D>(ContactMethod::SoftWay, GapDisplacement::Trapezoid);
+    assert!(penetration < 1e-4, "penetration {penetration}");
+    assert!(error < 3e-2, "energy error {error}");
+}
+
+both_dims!(
+    a_stack_of_soft_blocks_lands_and_settles,
+    trapezoid_gaps_keep_the_stack_apart
+);
 
 mod open {
-    use softway::contact::ContactMethod;
+    use softway::contact::{ContactMethod, GapDisplacement};
     #[test]
     #[ignore = "no convergence within 50 iterations at t = 0.104 s (Uzawa on the second landing)"]
     fn augmented_lagrangian_2d() {
-        super::stack::<2>(ContactMethod::AugmentedLagrangian);
+        super::stack::<2>(
+            ContactMethod::AugmentedLagrangian,
+            GapDisplacement::Configuration,
+        );
     }
     #[test]
-    #[ignore = "runs to the end (6.2e-4 m deep between the blocks) but its energy account is off \
-                by 0.40 of the reference"]
+    #[ignore = "runs to the end, but 9.6e-4 m deep between the blocks after a step and its \
+                energy account off by 0.18 of the reference: the blocks bounce, the end-of-step \
+                projection puts energy in (book, contact chapter, Limits)"]
     fn implicit_projection_3d() {
-        super::stack::<3>(ContactMethod::ImplicitProjection);
+        super::stack::<3>(
+            ContactMethod::ImplicitProjection,
+            GapDisplacement::Configuration,
+        );
     }
 }
