@@ -8,26 +8,32 @@
 //!
 //! Run: `cargo run --release --features formats --example energy_account`
 
-use softway::contact::GapDisplacement;
+use softway::contact::{GapDisplacement, PenaltyForce};
 use softway::Simulation;
 
 fn main() {
     let path =
         std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("fixtures/scenes/ring_drop.toml");
-    println!("method, gap displacement, friction: E account (worst), Q account (worst), dissipated, max penetration, iterations per contact step");
+    println!("method, gap displacement, penalty force, friction: E account (worst), Q account (worst), dissipated, max penetration, iterations per contact step");
     for method in [
         "soft_way",
         "augmented_lagrangian",
         "implicit_projection",
         "explicit_projection",
     ] {
-        let gaps: &[GapDisplacement] = match method {
-            "soft_way" | "augmented_lagrangian" => {
-                &[GapDisplacement::Configuration, GapDisplacement::Trapezoid]
-            }
-            _ => &[GapDisplacement::Configuration],
+        let variants: &[(GapDisplacement, PenaltyForce)] = match method {
+            "soft_way" => &[
+                (GapDisplacement::Configuration, PenaltyForce::EndOfStep),
+                (GapDisplacement::Trapezoid, PenaltyForce::EndOfStep),
+                (GapDisplacement::Trapezoid, PenaltyForce::Secant),
+            ],
+            "augmented_lagrangian" => &[
+                (GapDisplacement::Configuration, PenaltyForce::EndOfStep),
+                (GapDisplacement::Trapezoid, PenaltyForce::EndOfStep),
+            ],
+            _ => &[(GapDisplacement::Configuration, PenaltyForce::EndOfStep)],
         };
-        for &gap in gaps {
+        for &(gap, force) in variants {
             for friction in [
                 "{law=\"frictionless\"}",
                 "{law=\"coulomb\",coefficient=0.3}",
@@ -45,6 +51,7 @@ fn main() {
                     .expect("the bundled scene");
                 let mut model = scene.simulation().expect("builds").model().clone();
                 model.contact.gap_displacement = gap;
+                model.contact.penalty_force = force;
                 let mut sim = Simulation::<2>::from_model(model).expect("builds");
                 let (mut worst_e, mut worst_q, mut penetration) = (0.0f64, 0.0f64, 0.0f64);
                 let (mut iterations, mut contact_steps) = (0, 0);
@@ -67,7 +74,7 @@ fn main() {
                     worst_q = worst_q.max(accounts.1.abs());
                 }
                 println!(
-                    "{method}, {gap:?}, {friction}: {:+.3e} ({worst_e:.2e}), {:+.3e} \
+                    "{method}, {gap:?}, {force:?}, {friction}: {:+.3e} ({worst_e:.2e}), {:+.3e} \
                      ({worst_q:.2e}), {:.3e} J, {penetration:.2e} m, {:.2}",
                     accounts.0,
                     accounts.1,

@@ -14,7 +14,7 @@ use serde::{Deserialize, Serialize};
 pub use detection::{ContactPair, ContactSurface, DetectionOptions, Detector, Feature, Master};
 pub use obstacle::{MotionSegment, Obstacle, ObstacleShape};
 pub use resolution::{
-    ContactMethod, ContactSettings, FrictionLaw, GapDisplacement, ProjectionMetric,
+    ContactMethod, ContactSettings, FrictionLaw, GapDisplacement, PenaltyForce, ProjectionMetric,
 };
 
 /// The master side of a contact, as remembered between iterations and steps.

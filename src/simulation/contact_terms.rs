@@ -231,6 +231,7 @@ where
             let law_input = NormalInput {
                 key,
                 gap,
+                start_gap: gap - 0.5 * h * normal.dot(&(r0 + r1)),
                 normal_velocity,
                 area,
                 time_step: h,

@@ -218,6 +218,13 @@ fn out_of_range_numbers() {
             "soft_way",
         ),
         (
+            "penalty_force_secant_configuration",
+            "contact.penalty_force",
+            "penalty_force = \"secant\"",
+            "\"secant\" with method \"soft_way\" and gap_displacement \"configuration\"",
+            "gap_displacement \"trapezoid\"",
+        ),
+        (
             "projection_unknown",
             "contact.projection",
             "projection = \"midpoint\"",

@@ -51,6 +51,8 @@ pub(crate) struct NormalInput {
     pub key: ContactKey,
     /// The eq 22 gap (m).
     pub gap: f64,
+    /// The same gap at the start of the step, `gap - (h/2) n . (w0 + w1)` (m).
+    pub start_gap: f64,
     /// The relative normal end velocity (m/s).
     pub normal_velocity: f64,
     /// The slave's contact area (m^2).

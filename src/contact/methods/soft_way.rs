@@ -4,7 +4,7 @@
 //! Hessian, added by the step).
 
 use super::{Method, NormalInput, NormalLaw, OuterVariables};
-use crate::contact::ContactSettings;
+use crate::contact::{ContactSettings, PenaltyForce};
 
 /// The soft way.
 pub(crate) struct SoftWay;
@@ -23,6 +23,29 @@ pub(crate) fn penalty_law(lambda: f64, input: &NormalInput, zeta: f64) -> Normal
     }
 }
 
+/// The penalty potential's secant over the step (`PenaltyForce::Secant`): the pressure whose
+/// work over the step, `-p (g1 - g0)`, is `phi(g0) - phi(g1)` with `phi(g) = zeta min(g, 0)^2 / 2`.
+pub(crate) fn secant_penalty_law(input: &NormalInput, zeta: f64) -> NormalLaw {
+    let (g0, g1) = (input.start_gap, input.gap);
+    let phi = |g: f64| 0.5 * zeta * g.min(0.0).powi(2);
+    let dg = g1 - g0;
+    // Below this the secant is the tangent to round-off (|dg| relative to the gaps).
+    if dg.abs() <= 1e-12 * (g0.abs() + g1.abs()) {
+        return penalty_law(0.0, input, zeta);
+    }
+    let p = (phi(g0) - phi(g1)) / dg;
+    if p <= 0.0 {
+        return NormalLaw::default();
+    }
+    // dp/dg1 = -(phi'(g1) + p) / dg; the law's stiffness is -A dp/dg1 dg1/dw1, dg1/dw1 = h/2.
+    let dp_dg1 = -(zeta * g1.min(0.0) + p) / dg;
+    NormalLaw {
+        force: p * input.area,
+        stiffness: (-dp_dg1).max(0.0) * 0.5 * input.time_step * input.area,
+        pressure: p,
+    }
+}
+
 impl Method for SoftWay {
     fn symmetric_pairs(&self) -> bool {
         true
@@ -34,7 +57,10 @@ impl Method for SoftWay {
         _vars: &OuterVariables,
         settings: &ContactSettings,
     ) -> NormalLaw {
-        penalty_law(0.0, input, settings.penalty)
+        match settings.penalty_force {
+            PenaltyForce::EndOfStep => penalty_law(0.0, input, settings.penalty),
+            PenaltyForce::Secant => secant_penalty_law(input, settings.penalty),
+        }
     }
 
     fn stores_energy(&self) -> bool {

@@ -12,7 +12,7 @@ use super::schema::{
 use super::{LoadedScene, OutputOptions, Probe, Scene};
 use crate::contact::resolution::DEFAULT_REGULARIZATION;
 use crate::contact::{
-    ContactMethod, ContactSettings, FrictionLaw, GapDisplacement, ProjectionMetric,
+    ContactMethod, ContactSettings, FrictionLaw, GapDisplacement, PenaltyForce, ProjectionMetric,
 };
 use crate::dim::{Dim, Kinematics, SpatialDim};
 use crate::error::{Error, Result};
@@ -356,6 +356,31 @@ impl LoadedScene {
                 ))
             }
         };
+        let penalty_force = match c.penalty_force.as_deref() {
+            None | Some("end_of_step") => PenaltyForce::EndOfStep,
+            Some("secant") => PenaltyForce::Secant,
+            Some(other) => {
+                return Err(self.error(
+                    "contact.penalty_force",
+                    format!("\"{other}\""),
+                    "\"end_of_step\" or \"secant\"",
+                ))
+            }
+        };
+        if penalty_force == PenaltyForce::Secant
+            && (method != ContactMethod::SoftWay || gap_displacement != GapDisplacement::Trapezoid)
+        {
+            return Err(self.error(
+                "contact.penalty_force",
+                format!(
+                    "\"secant\" with method \"{}\" and gap_displacement \"{}\"",
+                    method.name(),
+                    c.gap_displacement.as_deref().unwrap_or("configuration")
+                ),
+                "method \"soft_way\" with gap_displacement \"trapezoid\" (the secant is the soft \
+                 way's pressure, and needs each step's start gap to be the last step's end gap)",
+            ));
+        }
         Ok(ContactSettings {
             method,
             penalty: c.penalty.unwrap_or(0.0),
@@ -364,6 +389,7 @@ impl LoadedScene {
             friction,
             gap_displacement,
             projection,
+            penalty_force,
             ..ContactSettings::default()
         })
     }

@@ -154,6 +154,9 @@ pub struct ContactSection {
     /// Implicit projection's end-of-step projection: "step" | "node".
     #[serde(default)]
     pub projection: Option<String>,
+    /// The soft way's pressure: "end_of_step" | "secant".
+    #[serde(default)]
+    pub penalty_force: Option<String>,
 }
 
 fn default_method() -> String {
@@ -170,6 +173,7 @@ impl Default for ContactSection {
             friction: FrictionSpec::Frictionless,
             gap_displacement: None,
             projection: None,
+            penalty_force: None,
         }
     }
 }

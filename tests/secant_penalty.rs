@@ -1,0 +1,96 @@
+//! The soft way's secant pressure (`PenaltyForce::Secant`, a discrete gradient of the penalty
+//! potential) on trapezoid gaps: a free elastic block thrown against a rigid floor (no gravity)
+//! bounces off with the energy it came with, where the paper's end-of-step pressure loses some.
+
+mod common;
+
+use common::{block, vec_d};
+use softway::contact::{
+    ContactMethod, ContactSettings, GapDisplacement, Obstacle, ObstacleShape, PenaltyForce,
+};
+use softway::dim::{Dim, SpatialDim};
+use softway::prelude::*;
+
+/// Throws the block down at 1 m/s from 1 mm above the floor and runs until it has left;
+/// returns the energy account on E and on the scheme's conserved energy Q relative to the
+/// initial kinetic energy, and the largest penetration.
+fn bounce<const D: usize>(force: PenaltyForce) -> (f64, f64, f64)
+where
+    Dim<D>: SpatialDim<D>,
+{
+    let mut up = [0.0; 3];
+    up[D - 1] = 1.0;
+    let mut down = [0.0; 3];
+    down[D - 1] = -1.0;
+    let mut mesh: Mesh<D> = block([0.1, 0.1, 0.1], [4, 4, 4], false);
+    let mut lift = [0.0; 3];
+    lift[D - 1] = 1e-3;
+    for x in &mut mesh.nodes {
+        *x += vec_d::<D>(lift);
+    }
+    let body = Body::new(
+        "block",
+        mesh,
+        Material::LinearElastic(LinearElastic::new(1e6, 0.3, 1000.0).unwrap()),
+    )
+    .with_velocity(vec_d(down));
+    let mut sim = Simulation::<D>::builder()
+        .time_step(1e-3)
+        .body(body)
+        .obstacle(Obstacle::new(
+            "floor",
+            ObstacleShape::Halfspace {
+                point: vec_d([0.0; 3]),
+                normal: vec_d(up),
+            },
+        ))
+        .contact(ContactSettings {
+            method: ContactMethod::SoftWay,
+            penalty: 1e9,
+            gap_displacement: GapDisplacement::Trapezoid,
+            penalty_force: force,
+            ..ContactSettings::default()
+        })
+        .build()
+        .unwrap();
+    let start = sim.energies().total();
+    let mut penetration: f64 = 0.0;
+    let mut touched = false;
+    while sim.state().time < 0.1 - 1e-9 {
+        let r = sim.step().unwrap();
+        penetration = penetration.max(r.max_penetration);
+        touched |= r.active_contacts > 0;
+    }
+    assert!(touched, "the block never reached the floor");
+    let e = sim.energies();
+    assert_eq!(e.contact, 0.0, "the block is still on the floor at 0.1 s");
+    let account_e = (e.total() - start) / start;
+    let account_q = (sim.scheme_energy() - start) / start;
+    eprintln!(
+        "{D}D {force:?}: E account {account_e:+.3e}, Q account {account_q:+.3e}, largest \
+         penetration {penetration:.3e} m"
+    );
+    (account_e, account_q, penetration)
+}
+
+fn secant_pressure_keeps_the_bounce_elastic<const D: usize>()
+where
+    Dim<D>: SpatialDim<D>,
+{
+    let (_, q_paper, _) = bounce::<D>(PenaltyForce::EndOfStep);
+    let (_, q_secant, penetration) = bounce::<D>(PenaltyForce::Secant);
+    // Measured: Q account -6.17e-2 (2D) / -6.18e-2 (3D) with the paper's pressure, +3.8e-4 /
+    // +1.7e-4 with the secant (the same with a Newton tolerance of 1e-12: the rest is not the
+    // solver's; not found yet).
+    assert!(q_secant.abs() < 1e-3, "Q account {q_secant}");
+    assert!(
+        q_paper.abs() > 50.0 * q_secant.abs(),
+        "{q_paper} against {q_secant}"
+    );
+    // p / zeta for the impact pressure rho c v0 (c = sqrt(E / rho) = 31.6 m/s) is 3.2e-5 m;
+    // measured 1.06e-4 (2D) / 1.03e-4 m (3D), against 4.9e-5 / 4.7e-5 m with the paper's
+    // pressure: the secant averages the step's start and end gaps, so it lags the end one.
+    assert!(penetration < 1.3e-4, "penetration {penetration}");
+}
+
+both_dims!(secant_pressure_keeps_the_bounce_elastic);
