@@ -723,25 +723,9 @@ where
             .iter()
             .map(|(p, key, choice, _)| ((p.slave, *key), *choice))
             .collect();
-        results
-            .into_iter()
-            .filter(|r| r.3)
-            .map(|(mut pair, ..)| {
-                // A gap within the round-off of the positions it is measured from is zero: an
-                // obstacle arriving exactly at a body at rest would otherwise push with a
-                // force of round-off size that Newton can neither reduce nor measure against.
-                let scale = x[pair.slave].norm() + pair.point.norm();
-                if pair.gap.abs() <= GAP_ROUNDOFF * scale {
-                    pair.gap = 0.0;
-                }
-                pair
-            })
-            .collect()
+        results.into_iter().filter(|r| r.3).map(|r| r.0).collect()
     }
 }
-
-/// Gaps within this fraction of the positions' magnitude are round-off (64 machine epsilons).
-const GAP_ROUNDOFF: f64 = 64.0 * f64::EPSILON;
 
 /// Whether an obstacle's region swept from its pose `o` (t0) to `pose_t1` (translation,
 /// rotation), grown by `margin`, may touch the box `seg` (conservative).

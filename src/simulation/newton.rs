@@ -44,9 +44,9 @@ fn one_pass_self_contact<const D: usize>(
         })
         .collect();
     pairs.retain(|p| match p.master {
-        Master::Facet(f) if facet_body[f] == body(p.slave) => !facets[f].iter().any(|&m| {
-            m < p.slave && own.get(&m).is_some_and(|&g| facets[g].contains(&p.slave))
-        }),
+        Master::Facet(f) if facet_body[f] == body(p.slave) => !facets[f]
+            .iter()
+            .any(|&m| m < p.slave && own.get(&m).is_some_and(|&g| facets[g].contains(&p.slave))),
         _ => true,
     });
 }
