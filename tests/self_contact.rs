@@ -260,8 +260,8 @@ impl<const D: usize> Surface<D> {
                 .map(|&f| facet_normal(&self.corners(f, x)))
                 .sum();
             let mut best: Option<(f64, f64)> = None;
-            for f in 0..self.facets.len() {
-                if (p - centres[f].0).norm() > reach + centres[f].1 || self.excluded(node, f) {
+            for (f, (centre, radius)) in centres.iter().enumerate() {
+                if (p - centre).norm() > reach + radius || self.excluded(node, f) {
                     continue;
                 }
                 let v = self.corners(f, x);
