@@ -540,7 +540,7 @@ mod open {
     }
 
     #[test]
-    #[ignore = "no convergence at t = 0.524 s (step 525), the fold squeezed as the plate stops"]
+    #[ignore = "no convergence at t = 0.531 s (step 532), the fold squeezed as the plate stops"]
     fn implicit_projection_2d() {
         let f = run::<2>(ContactMethod::ImplicitProjection, true);
         assert_resolved(&f);
@@ -548,7 +548,7 @@ mod open {
     }
 
     #[test]
-    #[ignore = "no convergence at t = 0.446 s (step 447), as the arms meet"]
+    #[ignore = "no convergence at t = 0.412 s (step 413), as the arms meet"]
     fn implicit_projection_3d() {
         let f = run::<3>(ContactMethod::ImplicitProjection, true);
         assert_resolved(&f);
