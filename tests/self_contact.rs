@@ -39,8 +39,9 @@ const DEPTH: f64 = 0.02;
 const PLATE_SPEED: f64 = 0.02;
 const PLATE_STOP: f64 = 0.5325;
 const END: f64 = 0.6;
-/// Gap between the plate and the upper arm at the start (m): the plate arrives exactly at the end
-/// of step 10 (a gap of round-off size on a body at rest: detection takes it as zero).
+/// Gap between the plate and the upper arm at the start (m), reached in mid-step: a plate that
+/// arrives exactly at the end of a step leaves a gap of round-off size on a body at rest, which
+/// stalls Newton (the book's contact chapter, Limits).
 const CLEARANCE: f64 = 2.5e-4;
 /// The soft way's zeta (Pa/m): the gripper's, zeta l_e / E = 5 here (the book's guide).
 const ZETA: f64 = 1e9;
@@ -333,7 +334,7 @@ struct Figures {
     /// force (N).
     self_force: f64,
     plate_force: f64,
-    /// The largest self-contact pressure (N / the node's area) (Pa).
+    /// The largest self-contact pressure of the penalty, zeta times the eq 22 penetration (Pa).
     pressure: f64,
     /// The largest `E - E(0) - W` over the run, relative to the energy reference.
     created: f64,
@@ -548,7 +549,7 @@ mod open {
     }
 
     #[test]
-    #[ignore = "no convergence at t = 0.412 s (step 413), as the arms meet"]
+    #[ignore = "no convergence at t = 0.412 s (step 413), before the plate stops"]
     fn implicit_projection_3d() {
         let f = run::<3>(ContactMethod::ImplicitProjection, true);
         assert_resolved(&f);
