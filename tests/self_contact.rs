@@ -534,7 +534,8 @@ mod open {
     use super::*;
 
     #[test]
-    #[ignore = "2.35e-4 m against 2 p / zeta = 6.9e-5 m (measured; not located yet)"]
+    #[ignore = "2.35e-4 m against 2 p / zeta = 6.9e-5 m, at the free ends (a node 1.8 mm \
+                beyond the lower arm's end edge, 0.4 mm below its top): not understood yet"]
     fn soft_way_within_twice_pressure_over_zeta_3d() {
         let f = run::<3>(ContactMethod::SoftWay, true);
         assert_within(&f, 2.0 * f.pressure / ZETA);
