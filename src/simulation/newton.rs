@@ -22,6 +22,35 @@ use crate::friction::{threshold_change, ThresholdSample};
 
 /// Halvings of a Newton increment while the residual grows.
 const MAX_BACKTRACKS: usize = 4;
+/// Self-contact in one pass, for the methods that hold each pair as a constraint: where a
+/// fold's two sides are both slaves of each other (node s on a facet holding node m, and m on
+/// a facet holding s), the two velocity constraints are (nearly) the same one, and their
+/// multipliers split the force arbitrarily, one of them in tension: the active set then
+/// releases and re-activates them without end. Of two such pairs only the one with the
+/// smaller slave is kept; a side's corner that has no such partner stays a slave.
+fn one_pass_self_contact<const D: usize>(
+    pairs: &mut Vec<crate::contact::ContactPair<D>>,
+    facets: &[[usize; D]],
+    facet_body: &[usize],
+    offsets: &[usize],
+) {
+    let body = |node: usize| offsets.partition_point(|&o| o <= node) - 1;
+    // The facet each self-contact slave is paired with (one per slave and master body).
+    let own: BTreeMap<usize, usize> = pairs
+        .iter()
+        .filter_map(|p| match p.master {
+            Master::Facet(f) if facet_body[f] == body(p.slave) => Some((p.slave, f)),
+            _ => None,
+        })
+        .collect();
+    pairs.retain(|p| match p.master {
+        Master::Facet(f) if facet_body[f] == body(p.slave) => !facets[f]
+            .iter()
+            .any(|&m| m < p.slave && own.get(&m).is_some_and(|&g| facets[g].contains(&p.slave))),
+        _ => true,
+    });
+}
+
 /// Takes back half of the last Newton increment (backtracking).
 fn halve_last_increment(v1: &mut [f64], last_increment: &mut [f64]) {
     for (v, d) in v1.iter_mut().zip(last_increment.iter_mut()) {
@@ -265,9 +294,11 @@ where
                 // against the other's facets, at half the contact area each: the same total
                 // stiffness on matching faces, and no corner of either body left unchecked);
                 // the projections keep one pass (the nodes of the body listed first are slaves)
-                // so that no constraint is duplicated. Self-contact keeps both sides of a fold.
+                // so that no constraint is duplicated; within a fold, of two pairs that hold
+                // each other's slave (`one_pass_self_contact`), the one with the smaller slave.
                 if !method.symmetric_pairs() {
-                    let facet_body = detector.surface().facet_body();
+                    let surface = detector.surface();
+                    let facet_body = surface.facet_body();
                     let offsets = &self.node_offsets;
                     pairs.retain(|p| match p.master {
                         Master::Facet(f) => {
@@ -276,6 +307,7 @@ where
                         }
                         Master::Obstacle(_) => true,
                     });
+                    one_pass_self_contact(&mut pairs, surface.facets(), facet_body, offsets);
                 }
                 if !vars.started {
                     let penetrating: Vec<ContactKey> = pairs
