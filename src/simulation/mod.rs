@@ -100,6 +100,17 @@ pub struct StepReport {
     pub contacts: Vec<(usize, f64, f64)>,
     /// Times the step was cut in two (no convergence, or a cell turned inside out).
     pub cuts: usize,
+    /// Contact points whose status implicit projection held until the step ended because its
+    /// active set cycled: points released twice in the step (kept closed) and, when an active
+    /// set came back, the points that kept flipping (kept as they were). 0 for the other
+    /// methods; the largest count of the pieces of a cut step.
+    #[serde(default)]
+    pub held_contacts: usize,
+    /// Times implicit projection's active set came back to a set already seen in the step
+    /// (a cycle), over every attempt of the step, the cut ones included. 0 for the other
+    /// methods.
+    #[serde(default)]
+    pub contact_cycles: usize,
 }
 
 /// A simulation of deformable bodies in D dimensions: a [`Model`], a [`State`], what is
@@ -129,6 +140,9 @@ where
     general_path: bool,
     /// The last step's contacts, for the host's queries (an output, not state).
     contact_log: contacts::ContactLog<D>,
+    /// Active sets that came back in the step under way, over all its attempts (cut ones
+    /// included): an output of the step, not state.
+    step_cycles: usize,
     caches: Caches<D>,
 }
 
@@ -552,6 +566,7 @@ where
             damping,
             general_path,
             contact_log: Default::default(),
+            step_cycles: 0,
             caches: Caches {
                 system: None,
                 contact_factors: Vec::new(),

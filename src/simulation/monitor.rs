@@ -168,8 +168,9 @@ where
 
 /// Watches a run step by step ([`RunMonitor::step`]): the energy created beyond the input
 /// ([`energy_created`]: a warning above [`ENERGY_WARNING`], an error above
-/// [`ENERGY_FAILURE`]), penetrations deeper than a tenth of the mean boundary facet, and
-/// steps that had to be cut. [`RunMonitor::warnings`] says what it saw, for the summary.
+/// [`ENERGY_FAILURE`]), penetrations deeper than a tenth of the mean boundary facet, steps
+/// that had to be cut, and steps in which implicit projection's contact set cycled
+/// ([`StepReport::held_contacts`], [`StepReport::contact_cycles`]). [`RunMonitor::warnings`] says what it saw, for the summary.
 #[derive(Debug, Clone)]
 pub struct RunMonitor {
     v0: Vec<f64>,
@@ -186,6 +187,11 @@ pub struct RunMonitor {
     cut_steps: usize,
     cuts: usize,
     first_cut: Option<(usize, f64)>,
+    /// Steps in which implicit projection's active set cycled (points held), the first such
+    /// step and its time, and the most points held in one step.
+    cycled_steps: usize,
+    first_cycle: Option<(usize, f64)>,
+    most_held: usize,
     /// Whether a body flows (Norton-Hoff): its dissipation is booked at the scheme's
     /// velocities, which overshoot for a few steps after a start from rest.
     viscous: bool,
@@ -216,6 +222,9 @@ impl RunMonitor {
             cut_steps: 0,
             cuts: 0,
             first_cut: None,
+            cycled_steps: 0,
+            first_cycle: None,
+            most_held: 0,
         }
     }
 
@@ -274,7 +283,7 @@ impl RunMonitor {
         Ok((!news.is_empty()).then(|| news.join("; ")))
     }
 
-    /// The penetration and the step cuts of a step.
+    /// The penetration, the step cuts and the contact-set cycles of a step.
     fn note_contacts(&mut self, report: &StepReport, news: &mut Vec<String>) {
         self.deepest = self.deepest.max(report.max_penetration);
         if report.max_penetration > self.penetration_tolerance && self.penetrated.is_none() {
@@ -288,6 +297,17 @@ impl RunMonitor {
             self.cut_steps += 1;
             self.cuts += report.cuts;
             self.first_cut.get_or_insert((report.step, report.time));
+        }
+        if report.held_contacts > 0 || report.contact_cycles > 0 {
+            self.cycled_steps += 1;
+            self.most_held = self.most_held.max(report.held_contacts);
+            if self.first_cycle.is_none() {
+                self.first_cycle = Some((report.step, report.time));
+                news.push(format!(
+                    "contact set cycled at step {} (t = {:.6e} s)",
+                    report.step, report.time
+                ));
+            }
         }
     }
 
@@ -329,6 +349,18 @@ impl RunMonitor {
                 self.cut_steps, self.cuts
             ));
         }
+        if let Some((step, time)) = self.first_cycle {
+            w.push(format!(
+                "implicit_projection's contact set cycled in {} step(s), the first at step \
+                 {step} (t = {time:.6e} s), with {} point(s) held at most in one step: points \
+                 that kept switching between open and closed were held as they were until the \
+                 step ended (a point released twice stays closed, pulling on its body if need \
+                 be), or the step was cut when none could be held, so the contact forces of \
+                 those steps are approximate; a smaller time_step resolves the contact, and the \
+                 soft_way and augmented_lagrangian methods have no active set",
+                self.cycled_steps, self.most_held
+            ));
+        }
         w
     }
 
@@ -365,6 +397,68 @@ mod tests {
             external_work,
             dissipated,
         }
+    }
+
+    fn report(step: usize, held_contacts: usize, contact_cycles: usize) -> StepReport {
+        StepReport {
+            step,
+            time: 1e-3 * step as f64,
+            time_step: 1e-3,
+            iterations: 1,
+            residual: 0.0,
+            energies: energies(0.0, 0.0, 0.0),
+            max_penetration: 0.0,
+            active_contacts: 0,
+            reactions: Vec::new(),
+            contact_forces: Vec::new(),
+            contacts: Vec::new(),
+            cuts: 0,
+            held_contacts,
+            contact_cycles,
+        }
+    }
+
+    /// Steps whose contact set cycled make one warning, with the first step, the count and
+    /// the most points held; the news is given once.
+    #[test]
+    fn contact_set_cycles_make_one_warning() {
+        let mut monitor = RunMonitor {
+            v0: Vec::new(),
+            e0: 1.0,
+            method: Some(ContactMethod::ImplicitProjection),
+            penetration_tolerance: 1.0,
+            created: None,
+            created_peak: 0.0,
+            penetrated: None,
+            deepest: 0.0,
+            cut_steps: 0,
+            cuts: 0,
+            first_cut: None,
+            cycled_steps: 0,
+            first_cycle: None,
+            most_held: 0,
+            viscous: false,
+        };
+        let mut news = Vec::new();
+        monitor.note_contacts(&report(1, 0, 0), &mut news);
+        assert!(monitor.warnings().is_empty() && news.is_empty());
+        monitor.note_contacts(&report(2, 3, 1), &mut news);
+        monitor.note_contacts(&report(3, 0, 0), &mut news);
+        monitor.note_contacts(&report(4, 5, 2), &mut news);
+        monitor.note_contacts(&report(5, 0, 1), &mut news);
+        assert_eq!(news, ["contact set cycled at step 2 (t = 2.000000e-3 s)"]);
+        assert_eq!(
+            monitor.warnings(),
+            [
+                "implicit_projection's contact set cycled in 3 step(s), the first at step 2 (t = \
+                 2.000000e-3 s), with 5 point(s) held at most in one step: points that kept \
+                 switching between open and closed were held as they were until the step ended \
+                 (a point released twice stays closed, pulling on its body if need be), or the \
+                 step was cut when none could be held, so the contact forces of those steps are \
+                 approximate; a smaller time_step resolves the contact, and the soft_way and \
+                 augmented_lagrangian methods have no active set"
+            ]
+        );
     }
 
     #[test]

@@ -457,6 +457,7 @@ where
                 for m in messages {
                     recorder.log(self, &format!("step {step}: {m}"));
                 }
+                self.step_cycles += std::mem::take(&mut vars.cycles);
                 if method.lagged_friction_threshold() {
                     // A released point carries no threshold into its next activation.
                     friction_normals.retain(|k, _| vars.active.contains(k));

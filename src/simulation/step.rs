@@ -45,9 +45,11 @@ where
         }
         let saved = self.state.clone();
         let saved_log = self.contact_log.clone();
+        self.step_cycles = 0;
         match self.advance_cut(h, recorder, 0, true) {
-            Ok(r) => {
+            Ok(mut r) => {
                 self.close_contact_log(&r.contact_forces);
+                r.contact_cycles = self.step_cycles;
                 Ok(r)
             }
             Err(e) => {
@@ -80,6 +82,7 @@ where
                 let mut second = self.advance_cut(0.5 * h, recorder, depth + 1, last_piece)?;
                 second.iterations += first.iterations;
                 second.cuts += first.cuts + 1;
+                second.held_contacts = second.held_contacts.max(first.held_contacts);
                 second.time_step = h;
                 for (a, b) in second.reactions.iter_mut().zip(&first.reactions) {
                     for (x, y) in a.iter_mut().zip(b) {
@@ -528,6 +531,8 @@ where
             contact_forces,
             contacts,
             cuts: 0,
+            held_contacts: vars.locked.len(),
+            contact_cycles: 0,
         };
         recorder.step_end(self, &report);
         Ok(report)

@@ -706,3 +706,34 @@ fn error_into_a_closed_stderr_keeps_its_status() {
     assert_eq!(o.status.code(), Some(2), "{:?}", o.status);
     assert_eq!(stdout(&o), "");
 }
+
+/// A block resting on the floor under implicit projection: its active set settles, and
+/// summary.json says nothing about cycles (their warning is tested on the monitor, in
+/// `simulation::monitor`).
+#[test]
+fn a_block_at_rest_makes_no_cycle_warning() {
+    let dir = tempdir();
+    let (_scenes, file) = scene(
+        &BLOCK
+            .replace("min = [0.0, 0.1]", "min = [0.0, 0.0]")
+            .replace(
+                "method = \"soft_way\"\npenalty = 1.0e10",
+                "method = \"implicit_projection\"",
+            ),
+    );
+    let out = dir.path().join("out");
+    let o = run_in(
+        dir.path(),
+        &[
+            "run",
+            file.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+            "--set",
+            "simulation.end_time=0.05",
+        ],
+    );
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let w = warnings(&out);
+    assert!(!w.iter().any(|w| w.contains("contact set cycled")), "{w:?}");
+}

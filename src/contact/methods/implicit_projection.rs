@@ -109,6 +109,7 @@ impl Method for ImplicitProjection {
         if changed {
             let set: Vec<ContactKey> = vars.active.iter().copied().collect();
             if !vars.seen_sets.insert(set) {
+                vars.cycles += 1;
                 // A cycle: every point released in this step keeps the status it has now
                 // until the step ends (closed ones may pull, open ones are moved out by the
                 // end-of-step projection); the rest go on.
@@ -170,5 +171,43 @@ impl Method for ImplicitProjection {
 
     fn end_projection(&self) -> EndProjection {
         EndProjection::Active
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::contact::MasterId;
+
+    /// A point that is released, activated again and released again brings the empty set
+    /// back: a cycle, counted, and the flipping point held until the step ends.
+    #[test]
+    fn a_set_that_comes_back_is_counted_and_its_point_held() {
+        let key: ContactKey = (7, MasterId::Obstacle(0));
+        let settings = ContactSettings::default();
+        let h = 1e-3;
+        let mut vars = OuterVariables::default();
+        ImplicitProjection.start(&mut vars, &[key]);
+        let tension = PairStatus {
+            key,
+            gap: 0.0,
+            normal_force: -1.0,
+            normal_velocity: 0.0,
+        };
+        let approaching = PairStatus {
+            key,
+            gap: -1e-3,
+            normal_force: 0.0,
+            normal_velocity: -1.0,
+        };
+        let update = |p: PairStatus, vars: &mut OuterVariables| {
+            ImplicitProjection.outer_update(&[p], vars, &settings, h, &mut |_| {})
+        };
+        assert_eq!(update(tension, &mut vars), OuterUpdate::Again);
+        assert_eq!(update(approaching, &mut vars), OuterUpdate::Again);
+        assert_eq!((vars.cycles, vars.locked.len()), (0, 0));
+        assert_eq!(update(tension, &mut vars), OuterUpdate::Again);
+        assert_eq!(vars.cycles, 1);
+        assert!(vars.locked.contains(&key));
     }
 }

@@ -40,6 +40,9 @@ pub(crate) struct OuterVariables {
     /// Implicit projection: the points whose status is kept until the step ends (released
     /// too often, or flipping in a cycle).
     pub locked: BTreeSet<ContactKey>,
+    /// Implicit projection: active sets that came back since the caller last took the count
+    /// (the step's monitor reads and resets it after every outer update).
+    pub cycles: usize,
     /// Whether [`Method::start`] ran in this step.
     pub started: bool,
 }
