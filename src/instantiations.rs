@@ -39,9 +39,6 @@ pub fn entry_points() -> Vec<usize> {
         crate::io::scene::LoadedScene::build::<3> as *const () as usize,
         crate::io::scene::Scene::<2>::simulation as *const () as usize,
         crate::io::scene::Scene::<3>::simulation as *const () as usize,
-    ]);
-    #[cfg(feature = "formats")]
-    points.extend([
         crate::io::output::run::<2> as *const () as usize,
         crate::io::output::run::<3> as *const () as usize,
         crate::io::output::run_with::<2> as *const () as usize,
