@@ -472,8 +472,9 @@ where
                     && frictional
                     && (!method.friction_return_map() || method.lagged_friction_threshold())
                 {
-                    // The smooth law's threshold follows the normal force until it settles
-                    // (the return map reads the current normal force instead).
+                    // A lagged threshold (implicit projection's return map, or the smooth law)
+                    // follows the normal force until it settles; the penalty methods' return
+                    // map reads the current normal force instead.
                     let samples: Vec<ThresholdSample<ContactKey>> = terms
                         .pairs
                         .iter()
