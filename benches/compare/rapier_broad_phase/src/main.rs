@@ -1,0 +1,264 @@
+//! rapier's broad phase (`BroadPhaseBvh`, rapier3d-f64 0.36) against softway's contact
+//! detection (`Detector::update_candidates`, a parry BVH) on the surfaces of
+//! `benches/detection.rs`: closed cube-spheres of 12 n^2 triangles, every vertex moved by up to
+//! 0.17 mean edge lengths over the step, self-contact on, margin 0.
+//!
+//! Both sides get the same swept boxes (a node's segment from x0 to x1, a facet's six
+//! points) and alternate between two motions, so that every box moves at every update. rapier
+//! has one collider per slave node and one per facet, with the boxes given by `set_aabb`
+//! (its own boxes would come from each collider's shape and pose), collision groups that keep
+//! node-node and facet-facet pairs out (its tree still finds them, its filter drops them), and
+//! reports the pairs as add/delete events, which a host keeps in a set. It knows no adjacency:
+//! a node's own facets are pairs too, and its fat boxes (a skin of 4 % of `length_unit`, set
+//! to the mean edge) find pairs early. softway's detector finds node-facet candidates only,
+//! without a node's own facets and their neighbours.
+//!
+//! Run (from this folder; its own workspace, out of softway's build and CI):
+//! `cargo run --release -- [SUBDIVISIONS...]` (default 29 91: 10,092 and 99,372 facets).
+//! Prints the median of 15 updates per side and the ratio.
+
+use std::collections::{HashMap, HashSet};
+use std::time::Instant;
+
+use nalgebra::Vector3;
+use rapier3d_f64::prelude::*;
+use softway::contact::detection::{ContactSurface, DetectionOptions, Detector};
+
+/// A cube subdivided `n x n` per face, projected on the unit sphere: 12 n^2 outward triangles
+/// (as in `benches/detection.rs`).
+fn cube_sphere(n: usize) -> (Vec<Vector3<f64>>, Vec<[usize; 3]>) {
+    let mut index: HashMap<[usize; 3], usize> = HashMap::new();
+    let mut nodes = Vec::new();
+    let mut id = |p: [usize; 3], nodes: &mut Vec<Vector3<f64>>| {
+        *index.entry(p).or_insert_with(|| {
+            let v = Vector3::new(p[0] as f64, p[1] as f64, p[2] as f64) * (2.0 / n as f64)
+                - Vector3::repeat(1.0);
+            nodes.push(v.normalize());
+            nodes.len() - 1
+        })
+    };
+    let mut tris = Vec::new();
+    for axis in 0..3 {
+        for side in [0, n] {
+            let (u, v) = ((axis + 1) % 3, (axis + 2) % 3);
+            for i in 0..n {
+                for j in 0..n {
+                    let corner = |a: usize, b: usize| {
+                        let mut p = [0; 3];
+                        p[axis] = side;
+                        p[u] = a;
+                        p[v] = b;
+                        p
+                    };
+                    let q = [
+                        id(corner(i, j), &mut nodes),
+                        id(corner(i + 1, j), &mut nodes),
+                        id(corner(i + 1, j + 1), &mut nodes),
+                        id(corner(i, j + 1), &mut nodes),
+                    ];
+                    for t in [[q[0], q[1], q[2]], [q[0], q[2], q[3]]] {
+                        let (a, b, c) = (nodes[t[0]], nodes[t[1]], nodes[t[2]]);
+                        let outward = (b - a).cross(&(c - a)).dot(&(a + b + c)) > 0.0;
+                        tris.push(if outward { t } else { [t[0], t[2], t[1]] });
+                    }
+                }
+            }
+        }
+    }
+    (nodes, tris)
+}
+
+/// A deterministic pseudo-random number in [-1, 1) (splitmix64).
+fn hash_unit(mut z: u64) -> f64 {
+    z = z.wrapping_add(0x9E3779B97F4A7C15);
+    z = (z ^ (z >> 30)).wrapping_mul(0xBF58476D1CE4E5B9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94D049BB133111EB);
+    z ^= z >> 31;
+    (z >> 11) as f64 / (1u64 << 52) as f64 - 1.0
+}
+
+fn mean_edge(x0: &[Vector3<f64>], tris: &[[usize; 3]]) -> f64 {
+    tris.iter()
+        .map(|t| {
+            (0..3)
+                .map(|k| (x0[t[k]] - x0[t[(k + 1) % 3]]).norm())
+                .sum::<f64>()
+        })
+        .sum::<f64>()
+        / (3 * tris.len()) as f64
+}
+
+/// Every vertex moved by up to 0.17 mean edge lengths; `seed` picks the directions.
+fn motion(x0: &[Vector3<f64>], edge: f64, seed: u64) -> Vec<Vector3<f64>> {
+    x0.iter()
+        .enumerate()
+        .map(|(i, x)| {
+            let d = Vector3::from_fn(|k, _| hash_unit(seed * 0x1000_0000 + (3 * i + k) as u64));
+            x + d * (0.17 * edge / 3f64.sqrt())
+        })
+        .collect()
+}
+
+fn median(mut v: Vec<f64>) -> f64 {
+    v.sort_by(f64::total_cmp);
+    v[v.len() / 2]
+}
+
+fn aabb(points: impl Iterator<Item = Vector3<f64>>) -> Aabb {
+    let (mut lo, mut hi) = (
+        Vector3::repeat(f64::INFINITY),
+        Vector3::repeat(f64::NEG_INFINITY),
+    );
+    for p in points {
+        lo = lo.inf(&p);
+        hi = hi.sup(&p);
+    }
+    Aabb::new(Vector::new(lo.x, lo.y, lo.z), Vector::new(hi.x, hi.y, hi.z))
+}
+
+const UPDATES: usize = 15;
+
+fn compare(n: usize) {
+    let (x0, tris) = cube_sphere(n);
+    let edge = mean_edge(&x0, &tris);
+    let motions = [motion(&x0, edge, 1), motion(&x0, edge, 2)];
+    let nodes = x0.len();
+
+    // softway: node-facet candidates, self-contact on, margin 0 and one mean edge.
+    let surface = ContactSurface::from_facets(std::slice::from_ref(&tris), &[0]);
+    let softway = |margin: f64| {
+        let options = DetectionOptions {
+            self_contact: true,
+            margin,
+            ..Default::default()
+        };
+        let mut detector = Detector::new(surface.clone(), options);
+        let t = Instant::now();
+        detector.update_candidates(&x0, &motions[0], &[], &[]);
+        let first = t.elapsed().as_secs_f64();
+        let mut times = Vec::new();
+        for k in 0..UPDATES {
+            let t = Instant::now();
+            detector.update_candidates(&x0, &motions[(k + 1) % 2], &[], &[]);
+            times.push(t.elapsed().as_secs_f64());
+        }
+        (median(times), first, detector.candidates().len())
+    };
+    let (softway_time, softway_first, softway_candidates) = softway(0.0);
+    let (wide_time, _, wide_candidates) = softway(edge);
+
+    // rapier: one collider per node (handles 0..nodes) and per facet, boxes set by hand.
+    // The fat-box skin is 4 % of the length unit: a mesh edge here, not a metre.
+    let params = IntegrationParameters {
+        length_unit: edge,
+        ..Default::default()
+    };
+    let bodies = RigidBodySet::new();
+    let mut colliders = ColliderSet::new();
+    // Colliders without a body are fixed: every pair type on, and groups that keep node-node
+    // and facet-facet pairs out (rapier's filter, applied after its tree finds them).
+    let nodes_meet_facets =
+        InteractionGroups::new(Group::GROUP_1, Group::GROUP_2, InteractionTestMode::And);
+    let facets_meet_nodes =
+        InteractionGroups::new(Group::GROUP_2, Group::GROUP_1, InteractionTestMode::And);
+    let mut handles: Vec<ColliderHandle> = Vec::with_capacity(nodes + tris.len());
+    for p in &x0 {
+        handles.push(
+            colliders.insert(
+                ColliderBuilder::ball(1e-9)
+                    .translation(Vector::new(p.x, p.y, p.z))
+                    .active_collision_types(ActiveCollisionTypes::all())
+                    .collision_groups(nodes_meet_facets),
+            ),
+        );
+    }
+    for t in &tris {
+        let v = |i: usize| Vector::new(x0[t[i]].x, x0[t[i]].y, x0[t[i]].z);
+        handles.push(
+            colliders.insert(
+                ColliderBuilder::triangle(v(0), v(1), v(2))
+                    .active_collision_types(ActiveCollisionTypes::all())
+                    .collision_groups(facets_meet_nodes),
+            ),
+        );
+    }
+    let mut broad_phase = BroadPhaseBvh::new();
+    let mut events = Vec::new();
+    let mut pairs: HashSet<(ColliderHandle, ColliderHandle)> = HashSet::new();
+    let mut rapier_update =
+        |x1: &[Vector3<f64>],
+         broad_phase: &mut BroadPhaseBvh,
+         pairs: &mut HashSet<(ColliderHandle, ColliderHandle)>| {
+            for (i, h) in handles.iter().enumerate() {
+                let b = if i < nodes {
+                    aabb([x0[i], x1[i]].into_iter())
+                } else {
+                    let t = tris[i - nodes];
+                    aabb(t.iter().flat_map(|&v| [x0[v], x1[v]]))
+                };
+                broad_phase.set_aabb(&params, *h, b);
+            }
+            events.clear();
+            broad_phase.update(&params, &colliders, &bodies, &[], &[], &mut events);
+            for e in &events {
+                match e {
+                    BroadPhasePairEvent::AddPair(p) => {
+                        pairs.insert((p.collider1, p.collider2));
+                    }
+                    BroadPhasePairEvent::DeletePair(p) => {
+                        pairs.remove(&(p.collider1, p.collider2));
+                        pairs.remove(&(p.collider2, p.collider1));
+                    }
+                }
+            }
+        };
+    let t = Instant::now();
+    rapier_update(&motions[0], &mut broad_phase, &mut pairs);
+    let rapier_first = t.elapsed().as_secs_f64();
+    let mut rapier_times = Vec::new();
+    for k in 0..UPDATES {
+        let t = Instant::now();
+        rapier_update(&motions[(k + 1) % 2], &mut broad_phase, &mut pairs);
+        rapier_times.push(t.elapsed().as_secs_f64());
+    }
+    let is_node = |h: &ColliderHandle| (h.into_raw_parts().0 as usize) < nodes;
+    let node_facet = pairs
+        .iter()
+        .filter(|(a, b)| is_node(a) != is_node(b))
+        .count();
+
+    let (s, r) = (softway_time, median(rapier_times));
+    println!(
+        "{} facets, {nodes} nodes: softway {:.2} ms per update (first {:.1} ms), {softway_candidates} \
+         node-facet candidates; rapier {:.2} ms (first {:.1} ms), {} pairs of which {node_facet} \
+         node-facet; rapier / softway = {:.2}; softway with a margin of one edge {:.2} ms, \
+         {wide_candidates} candidates",
+        tris.len(),
+        s * 1e3,
+        softway_first * 1e3,
+        r * 1e3,
+        rapier_first * 1e3,
+        pairs.len(),
+        r / s,
+        wide_time * 1e3
+    );
+}
+
+fn main() {
+    let sizes: Vec<usize> = std::env::args()
+        .skip(1)
+        .filter_map(|a| a.parse().ok())
+        .collect();
+    let sizes = if sizes.is_empty() {
+        vec![29, 91]
+    } else {
+        sizes
+    };
+    println!(
+        "one thread each (RAYON_NUM_THREADS=1 for softway's parallel detection if the feature is on); \
+         median of {UPDATES} updates"
+    );
+    for n in sizes {
+        compare(n);
+    }
+}
