@@ -242,7 +242,6 @@ fn material_damping(ratio: f64) -> RayleighDamping {
 }
 
 /// The mean of the nodes' displacements (or velocities) along the slope.
-
 fn mean_along<const D: usize>(values: &[f64]) -> f64
 where
     Dim<D>: SpatialDim<D>,
