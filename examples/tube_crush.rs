@@ -27,7 +27,8 @@
 //! [--set contact.method="soft_way"] [--rerun tube.rrd] [--svg tube.svg]`
 //! (`formats` reads the scene file; `--rerun` needs the `rerun` feature, on by default).
 //! `--svg FILE` draws the deformed mesh in (r, z) at the end (the book's figure);
-//! `--trace STEP` prints every step from STEP on (iterations, residual, cuts, contact points).
+//! `--trace STEP` prints every step from STEP on (iterations, residual, cuts, contact points)
+//! and, without `--rerun`, every iteration of those steps (the tube's own contact pairs).
 //! Its test: `cargo test --all-features --example tube_crush`.
 
 // `!(error <= bound)` is deliberate: a NaN fails the check too.
@@ -128,6 +129,65 @@ fn volume(mesh: &Mesh<2>, x: &[nalgebra::Vector2<f64>]) -> f64 {
     v
 }
 
+/// Prints every iteration of the steps from `from` on: the residual, the increment, and the
+/// tube's own contact pairs (slave node, gap, force, whether active).
+struct Tracer {
+    from: Option<usize>,
+}
+
+impl Recorder<2> for Tracer {
+    fn is_enabled(&self) -> bool {
+        self.from.is_some()
+    }
+
+    fn iteration(
+        &mut self,
+        sim: &Simulation2,
+        info: &softway::simulation::observe::IterationInfo<'_, 2>,
+    ) {
+        if self.from.is_none_or(|from| info.step < from) {
+            return;
+        }
+        let plate = info
+            .contacts
+            .iter()
+            .filter(|c| c.obstacle.is_some() && c.active)
+            .count();
+        let own: Vec<String> = info
+            .contacts
+            .iter()
+            .filter(|c| c.obstacle.is_none() && (c.active || c.gap < 0.0))
+            .map(|c| {
+                let x0 = sim.reference_positions()[c.slave];
+                format!(
+                    "node {} (at r = {:.2}, z = {:.2} mm at the start) gap {:.2e} force {:.2e}{}, \
+                     master point ({:.3}, {:.3}) mm, normal ({:.2}, {:.2})",
+                    c.slave,
+                    x0.x * 1e3,
+                    x0.y * 1e3,
+                    c.gap,
+                    c.normal_force,
+                    if c.active { " active" } else { "" },
+                    c.master_point.x * 1e3,
+                    c.master_point.y * 1e3,
+                    c.normal.x,
+                    c.normal.y
+                )
+            })
+            .collect();
+        println!(
+            "    step {} iteration {:3}: relative residual {:.3e}, increment {:.3e} m/s, {} pairs \
+             ({plate} active on the plate); the tube's own: [{}]",
+            info.step,
+            info.iteration,
+            info.relative_residual,
+            info.increment_norm,
+            info.contacts.len(),
+            own.join("; ")
+        );
+    }
+}
+
 fn scene_path() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures/scenes/tube_crush.toml")
 }
@@ -139,6 +199,10 @@ fn run(options: &Options) -> Result<Summary, Failure> {
     let method = scene.contact.method;
     let mut sim = scene.simulation()?;
     let mut recording = Recording::new(options.rerun.as_deref(), &scene.obstacles)?;
+    // `--trace` without `--rerun` also prints every iteration of the traced steps.
+    let mut tracer = Tracer {
+        from: options.trace.filter(|_| options.rerun.is_none()),
+    };
     let tube = sim.body_id("tube").ok_or("the scene has no body `tube`")?;
     let speed = -scene.obstacles[0].velocity.y;
     let x0 = sim.reference_positions().to_vec();
@@ -176,7 +240,12 @@ fn run(options: &Options) -> Result<Summary, Failure> {
     ];
     let mut snapshots: Vec<(f64, Vec<nalgebra::Vector2<f64>>)> = Vec::new();
     while sim.state().time < scene.end_time - 1e-12 {
-        let report = match sim.step_with(recording.recorder()) {
+        let recorder: &mut dyn Recorder<2> = if tracer.from.is_some() {
+            &mut tracer
+        } else {
+            recording.recorder()
+        };
+        let report = match sim.step_with(recorder) {
             Ok(r) => r,
             Err(e) => {
                 s.stopped = Some(format!(
