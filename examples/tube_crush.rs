@@ -4,17 +4,17 @@
 //! self-contact of the folds. The scene is the bundled `fixtures/scenes/tube_crush.toml`
 //! (its header states every choice), loaded with `softway::io::scene::load` as the command
 //! line loads it (the same `--set KEY=VALUE` overrides), and run by default over the first
-//! 0.3 ms, 15 mm of crush (the scene's end, 0.6 ms, is 30 mm): the top end flares, curls
-//! outward and comes round onto the wall, which it touches from step 265 on. About 18 s in
-//! the dev profile (self-contact needs that much of the crush; `--end-time 1e-4` runs in a third of
-//! the time without it, and fails the self-contact check).
+//! 0.3 ms, 15 mm of crush (the scene's end, 0.6 ms, is 30 mm): the top end flares outward,
+//! rolls over, and its tip lands on the flare's own upper side at step 265. About 18 s in the
+//! dev profile (self-contact needs that much of the crush; `--end-time 1e-4` runs in a third
+//! of the time without it, and fails the self-contact check).
 //!
 //! Checked at the end (the program exits with status 1 and says what failed otherwise):
 //! * the run ended (every step converged);
 //! * self-contact happened: contact points whose master is the tube's own body, with a
 //!   positive normal force, in at least one step;
 //! * penetration bounded: the deepest at the end of a step below 0.25 mm (an eighth of the
-//!   wall; measured 0.184 mm, in the steps where the curl first lands on the wall: the
+//!   wall; measured 0.184 mm, in the steps after the curl's tip lands on the flare: the
 //!   soft way's penalty, 1e13 Pa/m, pushes back only once a node is in; 0.133 mm at 1e14);
 //! * the energy account: `|E - E(0) - W + D|` (E kinetic + contact energy, W the plate's and
 //!   the base's work, D dissipated by the flow) within 2 % of the energy reference;
@@ -42,7 +42,7 @@ use common::run::{conclude, Args, Failure, Recording};
 use softway::prelude::*;
 
 /// The default simulated time [s]: half the scene's crush (15 mm), through the first steps of
-/// self-contact (from step 265, when the top end's curl comes round onto the wall).
+/// self-contact (from step 265, when the tip of the top end's curl lands on the flare).
 const DEFAULT_END: f64 = 3.0e-4;
 
 /// What the example is asked to do.
@@ -89,6 +89,9 @@ struct Summary {
     self_steps: usize,
     most_self: usize,
     first_self: Option<usize>,
+    /// Where the first self-contact was: the slave's position at the start [m] and the
+    /// contact point on its master facet [m].
+    first_self_where: Option<([f64; 2], [f64; 2])>,
     /// Plate travel [m] (speed times time) and the tube's length lost [m] (its highest
     /// point's drop).
     travel: f64,
@@ -219,6 +222,7 @@ fn run(options: &Options) -> Result<Summary, Failure> {
         self_steps: 0,
         most_self: 0,
         first_self: None,
+        first_self_where: None,
         travel: 0.0,
         shortening: 0.0,
         max_penetration: 0.0,
@@ -298,6 +302,16 @@ fn run(options: &Options) -> Result<Summary, Failure> {
                 force,
                 report.max_penetration
             );
+        }
+        if own > 0 && s.first_self.is_none() {
+            if let Some(c) = sim
+                .contacts()
+                .iter()
+                .find(|c| c.master == ContactMaster::Body(tube) && c.normal_force > 0.0)
+            {
+                let x = x0[c.node];
+                s.first_self_where = Some(([x.x, x.y], [c.point.x, c.point.y]));
+            }
         }
         if own > 0 {
             s.self_steps += 1;
@@ -496,6 +510,16 @@ fn print(s: &Summary) {
         s.first_self.map_or("-".to_string(), |k| k.to_string()),
         s.most_self
     );
+    if let Some((node, point)) = s.first_self_where {
+        println!(
+            "                first: the node at r = {:.2}, z = {:.2} mm at the start, on the \
+             tube's surface at r = {:.2}, z = {:.2} mm",
+            node[0] * 1e3,
+            node[1] * 1e3,
+            point[0] * 1e3,
+            point[1] * 1e3
+        );
+    }
     println!(
         "  plate force:  {:.4e} N at least after the first touch, {:.4e} N at most, {:.4e} N at \
          the end; penetration {:.3e} m at most",

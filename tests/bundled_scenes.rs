@@ -422,15 +422,15 @@ fn revolved_volume(mesh: &softway::mesh::Mesh<2>, x: &[nalgebra::Vector2<f64>]) 
 }
 
 /// The paper's third example (`tube_crush.toml`: 1250 cells, Norton-Hoff with inertia, the
-/// plate at 50 m/s, the soft way), shortened to its first 100 steps (5 mm of the 30 mm
-/// crush: the top end flares; its curl touches the wall only from step 265, which the
-/// example `tube_crush` checks: `cargo test --all-features --example tube_crush`). Every step converges; the axial momentum balance holds (the plate's and the
-/// base's impulses against the tube's momentum); the wall's volume is kept by the bulk
-/// penalty; the energy account closes; the penetration stays below a twentieth of the wall;
-/// the plate's force lies around the force that makes the whole section flow at the crush
-/// rate (sqrt(3) K (sqrt(3) v / L)^m times the section's area; measured: 1.28 times it on
-/// average over steps 3 to 100, momentum 2e-14, volume -0.107 %, account 3.7e-4, penetration
-/// 7.7e-5 m at the plate's impact).
+/// plate at 50 m/s, the soft way), shortened to its first 100 steps (5 mm of the 30 mm crush:
+/// the top end flares; its curl's tip lands on the flare only at step 265, which the example
+/// `tube_crush` checks: `cargo test --all-features --example tube_crush`). Every step
+/// converges; the axial momentum balance holds (the plate's and the base's impulses against the
+/// tube's momentum); the wall's volume is kept by the bulk penalty; the energy account closes;
+/// the penetration stays below a twentieth of the wall; the plate's force lies around the force
+/// that makes the whole section flow at the crush rate (sqrt(3) K (sqrt(3) v / L)^m times the
+/// section's area; measured: 1.28 times it on average over steps 3 to 100, momentum 2e-14,
+/// volume -0.107 %, account 3.7e-4, penetration 7.7e-5 m at the plate's impact).
 #[test]
 fn tube_crush() {
     let (mut sim, _, _) = scene::<2>("tube_crush", &[], [0.0, 0.0, 0.0]);
