@@ -404,6 +404,36 @@ fn folding_strip_with(overrides: &[&str]) {
     assert!(created < 2e-2, "energy created {created}");
 }
 
+/// The whole tube crush under the default method, which the scene does not use: it stops at
+/// step 274 (the book's materials chapter, example 3, has what the contact set does there).
+#[test]
+#[ignore = "factorisation failed at step 274 (t = 273 us), pivot 756 not positive, once the \
+            curl's tip is found behind the flare: implicit projection on self-contact (the \
+            book's materials chapter, example 3)"]
+fn tube_crush_default_method() {
+    let (mut sim, end, _) = scene::<2>(
+        "tube_crush",
+        &["contact.method=\"implicit_projection\""],
+        [0.0, 0.0, 0.0],
+    );
+    let own = softway::simulation::ContactMaster::Body(sim.body_id("tube").unwrap());
+    let mut self_steps = 0;
+    while sim.state().time < end - 1e-9 {
+        sim.step()
+            .unwrap_or_else(|e| panic!("t = {}: {e}", sim.state().time));
+        if sim
+            .contacts()
+            .iter()
+            .any(|c| c.master == own && c.normal_force > 0.0)
+        {
+            self_steps += 1;
+        }
+    }
+    let error = common::energy_error(&sim);
+    assert!(self_steps >= 20, "{self_steps} steps with self-contact");
+    assert!(error < 1e-2, "{error}");
+}
+
 /// The volume [m^3] of the revolution of a 2D body's cells (axisymmetric: each cell's corners
 /// split into triangles, Pappus: 2 pi times the area times the centroid's radius).
 fn revolved_volume(mesh: &softway::mesh::Mesh<2>, x: &[nalgebra::Vector2<f64>]) -> f64 {
