@@ -276,7 +276,8 @@ fn tilting_floor() {
         1e3 * slid_end
     );
     // Measured 21.93 degrees; 8.4 % below tan(theta) at worst (the block creeps as it nears
-    // the cone: the soft way's stick walks, tests/friction.rs); 0.00 %; 1.3 mm, 11.4 mm.
+    // the cone: a lightly damped block walks near the cone, tests/friction.rs); 0.00 %; 1.3 mm,
+    // 11.4 mm.
     assert!((onset - mu.atan().to_degrees()).abs() < 1.0, "{onset}");
     assert!(holding < 0.12 && beyond < 0.01, "{holding} {beyond}");
     assert!(slid_15 < 3e-3 && slid_end > 3.0 * slid_15);

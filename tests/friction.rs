@@ -1,8 +1,10 @@
 //! Coulomb friction as a return map under the soft way, the augmented Lagrangian and implicit
 //! projection (default scheme and tolerances), in 2D and 3D: a block on a 30 degree slope
-//! slides at g (sin 30 - mu cos 30) for mu = 0.3; with mu = 0.7 on a 25 degree slope and a
-//! material damping of 5 % it sticks (no creep between 0.1 s and 1 s); the bundled ring drop
-//! runs through its landing with Coulomb 0.3 and dissipates.
+//! slides at g (sin 30 - mu cos 30) for mu = 0.3; with mu = 0.7 it sticks (no creep between
+//! 0.1 s and 1 s) on a 25 degree slope with a material damping of 5 % and on a 30 degree slope
+//! with 20 %; with 5 % at 30 degrees it walks, the same under every method once the step
+//! resolves the block; the bundled ring drop runs through its landing with Coulomb 0.3 and
+//! dissipates.
 
 mod common;
 
@@ -51,19 +53,126 @@ macro_rules! per_method {
 per_method!(slide, block_on_a_slope_slides);
 per_method!(stick, block_on_a_slope_sticks);
 
-/// The scene a user tries first: 30 degrees, mu = 0.7 (tan 30 / 0.7 = 0.82 of the cone). Open.
-mod stick_near_the_cone {
+// The scene a user tries first: 30 degrees, mu = 0.7 (tan 30 / 0.7 = 0.82 of the cone), here
+// with a material damping of 20 % of critical at the block's first mode: it sticks under every
+// method at the default step. With 5 % it walks, and so does the converged model
+// ([`walks_near_the_cone_when_lightly_damped`]).
+per_method!(stick_near_the_cone, block_near_the_cone_sticks);
+
+fn block_near_the_cone_sticks<const D: usize>(method: ContactMethod)
+where
+    Dim<D>: SpatialDim<D>,
+{
+    sticks_on_a_slope_of::<D>(method, 30.0, material_damping(0.2));
+}
+
+/// Near the cone a lightly damped elastic block walks: a friction-driven stick-slip of its
+/// rocking, which the work of gravity feeds and friction dissipates. It is the model's, not a
+/// step's or a method's: at h = 0.1 ms (the block's first mode resolved, omega h = 0.5) and 5 %
+/// damping, the three methods walk the same 4.4 mm between 0.1 s and 1 s (measured 4.418,
+/// 4.430, 4.456 mm, implicit projection, soft way, augmented Lagrangian), and finer meshes walk
+/// too (3.6 and 3.4 mm/s with 2x and 4x the cells, against 4.9 mm/s, soft way). 2D only: the
+/// 3D runs at this step take minutes.
+#[test]
+fn walks_near_the_cone_when_lightly_damped() {
+    let walks: Vec<(ContactMethod, f64)> = [
+        ContactMethod::ImplicitProjection,
+        ContactMethod::SoftWay,
+        ContactMethod::AugmentedLagrangian,
+    ]
+    .into_iter()
+    .map(|method| {
+        let mut sim = slope::<2>(0.7, method, material_damping(0.05), 30.0, 1e-4);
+        run_to(&mut sim, 0.1);
+        let start = mean_along::<2>(&sim.state().displacement);
+        run_to(&mut sim, 1.0);
+        let walk = mean_along::<2>(&sim.state().displacement) - start;
+        eprintln!(
+            "2D {method:?}, h = 0.1 ms, 5 % damping: walk {walk:.4e} m over t = 0.1..1 s, energy \
+             error {:.2e}",
+            energy_error(&sim)
+        );
+        // The return map books the elastic slip's reversible work as dissipation: 2.2e-2 and
+        // 2.5e-2 for the penalty methods, 3e-4 for implicit projection's smooth law.
+        assert!(
+            energy_error(&sim) < 4e-2,
+            "{method:?}: {}",
+            energy_error(&sim)
+        );
+        (method, walk)
+    })
+    .collect();
+    let mean = walks.iter().map(|w| w.1).sum::<f64>() / walks.len() as f64;
+    assert!(
+        mean > 3e-3,
+        "the block walks {mean:e} m: it should not stick"
+    );
+    for (method, walk) in walks {
+        assert!(
+            (walk - mean).abs() < 0.03 * mean,
+            "{method:?} walks {walk:e} m, the methods' mean {mean:e} m"
+        );
+    }
+}
+
+/// At the default step (1 ms, the block's first mode unresolved, omega h = 5) and 5 % damping,
+/// the block should hop no more than the converged one, which touches the slope in all but 0.7
+/// to 1.2 % of its steps. Open: see the ignore reasons.
+mod hops_near_the_cone {
     use super::*;
     #[test]
-    #[ignore = "walks 1.1 cm over 0.9 s: energy enters where edge nodes pass between stick and slip"]
+    #[ignore = "no contact in 16 % of the steps: the soft way's block hops (walk 10.9 mm against 4.4)"]
     fn d2_soft_way() {
-        sticks_on_a_slope_of::<2>(ContactMethod::SoftWay, 30.0);
+        hops_like_the_converged_block::<2>(ContactMethod::SoftWay);
     }
     #[test]
-    #[ignore = "walks 1.4 cm over 0.9 s: energy enters where edge nodes pass between stick and slip"]
+    #[ignore = "no contact in 15 % of the steps: the soft way's block hops (walk 14 mm)"]
     fn d3_soft_way() {
-        sticks_on_a_slope_of::<3>(ContactMethod::SoftWay, 30.0);
+        hops_like_the_converged_block::<3>(ContactMethod::SoftWay);
     }
+    #[test]
+    fn d2_augmented_lagrangian() {
+        hops_like_the_converged_block::<2>(ContactMethod::AugmentedLagrangian);
+    }
+    #[test]
+    #[ignore = "no contact in 30 % of the steps (walk 38 mm)"]
+    fn d3_augmented_lagrangian() {
+        hops_like_the_converged_block::<3>(ContactMethod::AugmentedLagrangian);
+    }
+    #[test]
+    fn d2_implicit_projection() {
+        hops_like_the_converged_block::<2>(ContactMethod::ImplicitProjection);
+    }
+    #[test]
+    #[ignore = "no convergence at step 295 (relative residual 1.2e-2) while the block rocks"]
+    fn d3_implicit_projection() {
+        hops_like_the_converged_block::<3>(ContactMethod::ImplicitProjection);
+    }
+}
+
+fn hops_like_the_converged_block<const D: usize>(method: ContactMethod)
+where
+    Dim<D>: SpatialDim<D>,
+{
+    let mut sim = slope::<D>(0.7, method, material_damping(0.05), 30.0, 1e-3);
+    let (mut steps, mut airborne) = (0, 0);
+    while sim.state().time < 1.0 - 1e-9 {
+        let r = sim
+            .step()
+            .unwrap_or_else(|e| panic!("t = {}: {e}", sim.state().time));
+        steps += 1;
+        airborne += usize::from(r.active_contacts == 0);
+    }
+    let share = airborne as f64 / steps as f64;
+    eprintln!(
+        "{D}D {method:?}: no contact in {:.1} % of the steps",
+        100.0 * share
+    );
+    assert!(
+        share <= 0.03,
+        "no contact in {:.1} % of the steps",
+        100.0 * share
+    );
 }
 
 /// A 0.2 x 0.1 (x 0.1) m block resting on the plane y = 0 (z = 0 in 3D) under gravity tilted by
@@ -74,6 +183,7 @@ fn slope<const D: usize>(
     method: ContactMethod,
     damping: RayleighDamping,
     degrees: f64,
+    time_step: f64,
 ) -> Simulation<D>
 where
     Dim<D>: SpatialDim<D>,
@@ -86,7 +196,7 @@ where
     g[0] = G * theta.sin();
     g[D - 1] = -G * theta.cos();
     Simulation::<D>::builder()
-        .time_step(1e-3)
+        .time_step(time_step)
         .gravity(vec_d(g))
         .body(
             Body::new(
@@ -120,17 +230,18 @@ where
         .unwrap()
 }
 
-/// The mean of the nodes' displacements (or velocities) along the slope.
-/// Stiffness-proportional damping of 5 % of critical at the block's first axial mode (the
+/// Stiffness-proportional damping of `ratio` of critical at the block's first axial mode (the
 /// quarter wave through its 0.1 m height, omega = pi c / (2 H), c = sqrt(E / rho)), more on
 /// faster modes: a material's own damping, which brings the block to rest.
-fn material_damping() -> RayleighDamping {
+fn material_damping(ratio: f64) -> RayleighDamping {
     let omega = std::f64::consts::PI * (1e7f64 / 1000.0).sqrt() / (2.0 * 0.1);
     RayleighDamping {
         mass: 0.0,
-        stiffness: 2.0 * 0.05 / omega,
+        stiffness: 2.0 * ratio / omega,
     }
 }
+
+/// The mean of the nodes' displacements (or velocities) along the slope.
 
 fn mean_along<const D: usize>(values: &[f64]) -> f64
 where
@@ -162,14 +273,17 @@ fn block_on_a_slope_sticks<const D: usize>(method: ContactMethod)
 where
     Dim<D>: SpatialDim<D>,
 {
-    sticks_on_a_slope_of::<D>(method, 25.0);
+    sticks_on_a_slope_of::<D>(method, 25.0, material_damping(0.05));
 }
 
-fn sticks_on_a_slope_of<const D: usize>(method: ContactMethod, degrees: f64)
-where
+fn sticks_on_a_slope_of<const D: usize>(
+    method: ContactMethod,
+    degrees: f64,
+    damping: RayleighDamping,
+) where
     Dim<D>: SpatialDim<D>,
 {
-    let mut sim = slope::<D>(0.7, method, material_damping(), degrees);
+    let mut sim = slope::<D>(0.7, method, damping, degrees, 1e-3);
     let settle = run_to(&mut sim, 0.1);
     let start = mean_along::<D>(&sim.state().displacement);
     let (mut low, mut high) = (start, start);
@@ -204,7 +318,7 @@ where
     Dim<D>: SpatialDim<D>,
 {
     let (theta, mu) = (30f64.to_radians(), 0.3);
-    let mut sim = slope::<D>(mu, method, RayleighDamping::NONE, 30.0);
+    let mut sim = slope::<D>(mu, method, RayleighDamping::NONE, 30.0, 1e-3);
     run_to(&mut sim, 0.1);
     // The acceleration: a least-squares line through the mean velocity of every step from
     // 0.1 s to 0.5 s (the block's elastic vibration averages out).
@@ -343,9 +457,9 @@ where
     let weight = mass * G;
     for (damping, label) in [
         (RayleighDamping::NONE, "undamped"),
-        (material_damping(), "damped"),
+        (material_damping(0.05), "damped"),
     ] {
-        let mut sim = slope::<D>(0.0, ContactMethod::SoftWay, damping, 0.0);
+        let mut sim = slope::<D>(0.0, ContactMethod::SoftWay, damping, 0.0, 1e-3);
         let (mut low, mut high) = (f64::INFINITY, 0.0f64);
         while sim.state().time < 0.2 - 1e-9 {
             let r = sim.step().unwrap();

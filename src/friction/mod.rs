@@ -23,11 +23,12 @@
 //! symmetric and is left out of the iteration matrix (symmetric quasi-Newton, with
 //! backtracking; it is returned apart so that the tangent can be checked whole).
 //!
-//! **Implicit projection** keeps the smooth law `F_t = -mu F_n v_t / sqrt(|v_t|^2 + v_reg^2)`
-//! ([`FrictionLaw::force`]) on the mean relative tangential velocity
-//! `v_t = (I - n n) (w0 + w1)/2`, `v_reg` the `regularization` (m/s) (a creep velocity in
-//! stick), and Coulomb's threshold `mu F_n` follows the normal force by a fixed point between
-//! Newton solves (the crate-internal `threshold_change`). Viscoplastic friction is that smooth law everywhere.
+//! **Implicit projection** has the same return map with Coulomb's threshold taken from the
+//! previous pass's normal force (its normal force is a multiplier, exact only when the active
+//! set has converged: the crate-internal `threshold_change` is that fixed point) and a
+//! tangential stiffness of 100 times the slave's diagonal per step (no penalty to borrow).
+//! Viscoplastic friction is the smooth law `F_t = -a A (|v_t|^2 + v_reg^2)^((p-1)/2) v_t` on
+//! the mean relative tangential velocity under every method ([`FrictionLaw::force`]).
 //!
 //! Dissipation is booked in every case as `-F_t . (h/2)(I - n n)(w0 + w1)`, the work along the
 //! slip of eq 22 (the displacement of the configuration update): the energy account stays
@@ -50,21 +51,21 @@ pub enum FrictionLaw {
     /// No tangential force.
     #[default]
     Frictionless,
-    /// `|F_t| <= mu F_n`. Under penalty methods, the return map (module docs); under implicit
-    /// projection, `F_t = -mu F_n v_t / sqrt(|v_t|^2 + v_reg^2)`, a stick regularised below
-    /// `regularization` (m/s) of slip rate.
+    /// `|F_t| <= mu F_n`: the return map under every method that carries friction (module
+    /// docs). [`FrictionLaw::force`] is its smooth form `F_t = -mu F_n v_t / sqrt(|v_t|^2 +
+    /// v_reg^2)`, which no method uses any more.
     Coulomb {
         /// mu (dimensionless).
         coefficient: f64,
-        /// Slip-rate scale of the regularised stick (m/s).
+        /// Slip-rate scale of the smooth form (m/s; accepted, unused by the methods).
         regularization: f64,
     },
-    /// `|F_t| <= limit A` (a limit shear stress) on closed contacts: the return map under
-    /// penalty methods, regularised like Coulomb under implicit projection.
+    /// `|F_t| <= limit A` (a limit shear stress) on closed contacts: the return map, like
+    /// Coulomb.
     Tresca {
         /// Limit shear stress (Pa).
         limit: f64,
-        /// Slip-rate scale of the regularised stick (m/s).
+        /// Slip-rate scale of the smooth form (m/s; accepted, unused by the methods).
         regularization: f64,
     },
     /// `F_t = -a A |v_t|^(p-1) v_t` (eq 33) with `|v_t|` replaced by
