@@ -404,3 +404,116 @@ fn folding_strip_with(overrides: &[&str]) {
     assert!(closest < 1e-6, "the arms stayed {closest} m apart");
     assert!(created < 2e-2, "energy created {created}");
 }
+
+/// The whole tube crush under the default method, which the scene does not use: it stops at
+/// step 274 (the book's materials chapter, example 3, has what the contact set does there).
+#[test]
+#[ignore = "factorisation failed at step 274 (t = 273 us), pivot 756 not positive, once the \
+            curl's tip is found behind the flare: implicit projection on self-contact (the \
+            book's materials chapter, example 3)"]
+fn tube_crush_default_method() {
+    let (mut sim, end, _) = scene::<2>(
+        "tube_crush",
+        &["contact.method=\"implicit_projection\""],
+        [0.0, 0.0, 0.0],
+    );
+    let own = softway::simulation::ContactMaster::Body(sim.body_id("tube").unwrap());
+    let mut self_steps = 0;
+    while sim.state().time < end - 1e-9 {
+        sim.step()
+            .unwrap_or_else(|e| panic!("t = {}: {e}", sim.state().time));
+        if sim
+            .contacts()
+            .iter()
+            .any(|c| c.master == own && c.normal_force > 0.0)
+        {
+            self_steps += 1;
+        }
+    }
+    let error = common::energy_error(&sim);
+    assert!(self_steps >= 20, "{self_steps} steps with self-contact");
+    assert!(error < 1e-2, "{error}");
+}
+
+/// The volume [m^3] of the revolution of a 2D body's cells (axisymmetric: each cell's corners
+/// split into triangles, Pappus: 2 pi times the area times the centroid's radius).
+fn revolved_volume(mesh: &softway::mesh::Mesh<2>, x: &[nalgebra::Vector2<f64>]) -> f64 {
+    let mut v = 0.0;
+    for block in &mesh.blocks {
+        let n = block.kind.nodes();
+        for cell in block.connectivity.chunks(n) {
+            for k in 1..n.min(4) - 1 {
+                let (a, b, c) = (x[cell[0]], x[cell[k]], x[cell[k + 1]]);
+                let area = 0.5 * (b - a).perp(&(c - a));
+                v += 2.0 * std::f64::consts::PI * area * (a.x + b.x + c.x) / 3.0;
+            }
+        }
+    }
+    v
+}
+
+/// The paper's third example (`tube_crush.toml`: 1250 cells, Norton-Hoff with inertia, the
+/// plate at 50 m/s, the soft way), shortened to its first 100 steps (5 mm of the 30 mm crush:
+/// the top end flares; its curl's tip lands on the flare only at step 265, which the example
+/// `tube_crush` checks: `cargo test --all-features --example tube_crush`). Every step
+/// converges; the axial momentum balance holds (the plate's and the base's impulses against the
+/// tube's momentum); the wall's volume is kept by the bulk penalty; the energy account closes;
+/// the penetration stays below a twentieth of the wall; the plate's force lies around the force
+/// that makes the whole section flow at the crush rate (sqrt(3) K (sqrt(3) v / L)^m times the
+/// section's area; measured: 1.28 times it on average over steps 3 to 100, momentum 2e-14,
+/// volume -0.107 %, account 3.7e-4, penetration 7.7e-5 m at the plate's impact).
+#[test]
+fn tube_crush() {
+    let (mut sim, _, _) = scene::<2>("tube_crush", &[], [0.0, 0.0, 0.0]);
+    let mesh = sim.model().bodies[0].mesh.clone();
+    let x0 = sim.reference_positions().to_vec();
+    let v0 = revolved_volume(&mesh, &x0);
+    let axial = |sim: &Simulation<2>| {
+        let v = &sim.state().velocity;
+        let y: Vec<f64> = (0..v.len()).map(|i| (i % 2) as f64).collect();
+        sim.mass_matrix().dot(&y, v)
+    };
+    let (mut impulse, mut deepest, mut least, mut mean) = (0.0, 0.0f64, f64::INFINITY, 0.0);
+    let mut iterations = Vec::new();
+    let steps = 100;
+    for k in 0..steps {
+        let r = sim
+            .step()
+            .unwrap_or_else(|e| panic!("t = {}: {e}", sim.state().time));
+        impulse += (r.contact_forces[0][1] + r.reactions[0][1]) * r.time_step;
+        deepest = deepest.max(r.max_penetration);
+        iterations.push(r.iterations);
+        // From the third step the plate is on the tube (0.1 mm of clearance at 50 m/s).
+        if k >= 2 {
+            least = least.min(-r.contact_forces[0][1]);
+            mean += -r.contact_forces[0][1] / (steps - 2) as f64;
+        }
+    }
+    let p = axial(&sim);
+    let momentum = (impulse - p).abs() / (sim.body_mass(sim.body_ids()[0]).unwrap() * 50.0);
+    let volume = revolved_volume(&mesh, &sim.positions()) / v0 - 1.0;
+    let error = common::energy_error(&sim);
+    // The section's flow force at the mean axial rate v / L.
+    let area = std::f64::consts::PI * (0.022f64.powi(2) - 0.02f64.powi(2));
+    let flow = 3f64.sqrt() * 8e7 * (3f64.sqrt() * 50.0 / 0.06).powf(0.1) * area;
+    iterations.sort_unstable();
+    eprintln!(
+        "tube crush: {steps} steps, iterations {} / {} / {} (min / median / max), momentum \
+         balance {momentum:.2e}, volume {:+.3} %, energy account {error:.2e}, penetration \
+         {deepest:.3e} m, plate force {least:.4e} N at least, {mean:.4e} N on average (the \
+         section's flow force {flow:.4e} N)",
+        iterations[0],
+        iterations[steps / 2],
+        iterations[steps - 1],
+        100.0 * volume
+    );
+    assert!(momentum < 1e-6, "{momentum}");
+    assert!(volume.abs() < 0.005, "{volume}");
+    assert!(error < 1e-2, "{error}");
+    assert!(deepest < 1e-4, "{deepest}");
+    assert!(least > 0.0, "{least}");
+    assert!(
+        mean > 0.5 * flow && mean < 2.0 * flow,
+        "{mean} against {flow}"
+    );
+}
