@@ -174,10 +174,7 @@ pub enum Error {
     #[error(
         "fall-through at step {step} (t = {time:.6e} s): {nodes} node(s) of body `{body}` \
          ended the step inside {other}, the deepest {depth:.3e} m, beyond the reach of contact \
-         detection ({reach:.3e} m), so nothing pushes them out: the body crossed the surface \
-         within a step without being caught (too fast for the time step: use a smaller \
-         time_step, so that a node moves less than a quarter of the mean boundary facet per \
-         step){hint}"
+         detection ({reach:.3e} m), so nothing pushes them out: {advice}{hint}"
     )]
     FellThrough {
         /// Step number (1-based).
@@ -194,6 +191,8 @@ pub enum Error {
         depth: f64,
         /// The reach of contact detection (m).
         reach: f64,
+        /// What happened and what to change.
+        advice: String,
         /// Empty, or how a polyline's or trimesh's facets set its solid side (the body may
         /// have been inside all along).
         hint: String,

@@ -139,8 +139,10 @@ where
         }
         let point = Aabb { min: *p, max: *p };
         let diag = (self.bounds.max - self.bounds.min).norm();
-        let mut r = (1e-3 * diag).max(1e-300);
-        let reach = 4.0 * (diag + self.bounds.distance(&point));
+        let outside = self.bounds.distance(&point);
+        // No facet is nearer than the facets' bounds.
+        let mut r = (1e-3 * diag).max(outside).max(1e-300);
+        let reach = 4.0 * (diag + outside);
         let mut hits = Vec::new();
         // Grow a box until it holds an accepted facet at most its half-width away: it then
         // holds every facet as close as the closest one.
@@ -246,13 +248,12 @@ where
     }
 }
 
-/// The cells of bodies in their current configuration, with a hierarchy of their boxes.
+/// A hierarchy of the boxes of bodies' cells in their current configuration; the cells are
+/// (body, kind, global nodes), kept by the caller.
 pub(crate) struct CellIndex<const D: usize>
 where
     Dim<D>: SpatialDim<D>,
 {
-    /// (body, kind, global nodes) per cell.
-    cells: Vec<(usize, ElementKind, Vec<usize>)>,
     tree: BoxTree<D>,
 }
 
@@ -260,41 +261,36 @@ impl<const D: usize> CellIndex<D>
 where
     Dim<D>: SpatialDim<D>,
 {
-    /// Cells as (body, kind, global nodes) at positions `x` (m).
-    pub(crate) fn new(cells: Vec<(usize, ElementKind, Vec<usize>)>, x: &[SVector<f64, D>]) -> Self {
+    /// The hierarchy of `cells` at positions `x` (m).
+    pub(crate) fn new(cells: &[(usize, ElementKind, Vec<usize>)], x: &[SVector<f64, D>]) -> Self {
         let boxes: Vec<Aabb<D>> = cells
             .iter()
             .map(|(_, _, nodes)| Aabb::from_points(nodes.iter().map(|&n| &x[n])))
             .collect();
         CellIndex {
             tree: BoxTree::new(&boxes),
-            cells,
         }
     }
 
-    /// The bodies other than `own` with a cell holding `p`, sorted, at positions `x`.
-    pub(crate) fn bodies_holding(
+    /// Whether a cell of body `body` holds `p` (the same `cells` and `x` as at construction).
+    pub(crate) fn holds(
         &self,
         p: &SVector<f64, D>,
-        own: usize,
+        body: usize,
+        cells: &[(usize, ElementKind, Vec<usize>)],
         x: &[SVector<f64, D>],
         hits: &mut Vec<usize>,
-    ) -> Vec<usize> {
+    ) -> bool {
         hits.clear();
         self.tree.query(&Aabb { min: *p, max: *p }, hits);
-        let mut bodies: Vec<usize> = Vec::new();
-        for &c in hits.iter() {
-            let (body, kind, nodes) = &self.cells[c];
-            if *body == own || bodies.contains(body) {
-                continue;
+        hits.iter().any(|&c| {
+            let (b, kind, nodes) = &cells[c];
+            if *b != body {
+                return false;
             }
             let corners: Vec<SVector<f64, D>> = nodes.iter().map(|&n| x[n]).collect();
-            if in_cell(*kind, &corners, p) {
-                bodies.push(*body);
-            }
-        }
-        bodies.sort_unstable();
-        bodies
+            in_cell(*kind, &corners, p)
+        })
     }
 }
 

@@ -12,6 +12,7 @@ use crate::contact::{Master, ObstacleShape};
 use crate::dim::{Dim, SpatialDim};
 use crate::element::ElementKind;
 use crate::error::{Error, Result};
+use crate::geometry::Aabb;
 
 /// What a node is inside (indices in scene order).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
@@ -111,13 +112,39 @@ where
             }
         }
         if self.model.bodies.len() > 1 {
-            let cells = CellIndex::new(solids.cells.clone(), &x);
-            // The bodies' surfaces, built when a node is first found in another body's cell.
-            let mut surfaces: Option<FacetSolid<D>> = None;
-            let mut hits = Vec::new();
-            for (&node, &body) in surface.slaves().iter().zip(surface.slave_body()) {
-                for b in cells.bodies_holding(&x[node], body, &x, &mut hits) {
-                    if skip(node, Inside::Body(b)) {
+            // Only nodes in another body's box, not already paired with it, are tested
+            // against its cells: in a run, nodes near another body are its candidates, so
+            // the cells' hierarchy is seldom built.
+            let boxes: Vec<Aabb<D>> = (0..self.model.bodies.len())
+                .map(|b| {
+                    let end = self.node_offsets.get(b + 1).copied().unwrap_or(x.len());
+                    Aabb::from_points(&x[self.node_offsets[b]..end])
+                })
+                .collect();
+            let pending: Vec<(usize, usize, usize)> = surface
+                .slaves()
+                .iter()
+                .zip(surface.slave_body())
+                .flat_map(|(&node, &body)| {
+                    let p = Aabb {
+                        min: x[node],
+                        max: x[node],
+                    };
+                    boxes
+                        .iter()
+                        .enumerate()
+                        .filter(move |&(b, bb)| b != body && bb.intersects(&p))
+                        .map(move |(b, _)| (node, body, b))
+                })
+                .filter(|&(node, _, b)| !skip(node, Inside::Body(b)))
+                .collect();
+            if !pending.is_empty() {
+                let cells = CellIndex::new(&solids.cells, &x);
+                // The bodies' surfaces, built when a node is first found in another's cell.
+                let mut surfaces: Option<FacetSolid<D>> = None;
+                let mut hits = Vec::new();
+                for (node, body, b) in pending {
+                    if !cells.holds(&x[node], b, &solids.cells, &x, &mut hits) {
                         continue;
                     }
                     let s = surfaces.get_or_insert_with(|| {
@@ -244,6 +271,16 @@ where
     /// nodes beyond reach); `None` when there is none.
     pub fn fell_through(&self) -> Option<Overlap> {
         let detector = self.caches.detector.as_ref()?;
+        // Half-spaces, boxes and balls are found at any depth: nothing to watch without a
+        // polyline, a trimesh or a second body.
+        let facets = self
+            .model
+            .obstacles
+            .iter()
+            .any(|o| matches!(o.shape, ObstacleShape::Facets { .. }));
+        if !facets && self.model.bodies.len() < 2 {
+            return None;
+        }
         let facet_body = detector.surface().facet_body();
         let mut reached: Vec<(usize, Inside)> = detector
             .candidates()
