@@ -174,7 +174,7 @@ pub enum Error {
     #[error(
         "fall-through at step {step} (t = {time:.6e} s): {nodes} node(s) of body `{body}` \
          ended the step inside {other}, the deepest {depth:.3e} m, beyond the reach of contact \
-         detection ({reach:.3e} m), so nothing pushes them out: {advice}{hint}"
+         detection ({reach:.3e} m), so nothing pushes them out: {advice}"
     )]
     FellThrough {
         /// Step number (1-based).
@@ -191,11 +191,9 @@ pub enum Error {
         depth: f64,
         /// The reach of contact detection (m).
         reach: f64,
-        /// What happened and what to change.
+        /// What happened and what to change (for a polyline or trimesh, also how its facets
+        /// set its solid side: the body may have been inside all along).
         advice: String,
-        /// Empty, or how a polyline's or trimesh's facets set its solid side (the body may
-        /// have been inside all along).
-        hint: String,
     },
     /// A cell of an updated-Lagrangian body turned inside out in every Newton iterate tried
     /// (after halving the increment), at the step's finest cut.

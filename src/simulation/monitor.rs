@@ -192,28 +192,30 @@ impl RunMonitor {
                 nodes: o.nodes,
                 depth: o.depth,
                 reach: o.reach,
-                advice: match self.method {
-                    Some(ContactMethod::SoftWay | ContactMethod::AugmentedLagrangian) => {
-                        "the body crossed the surface within a step without being caught, or \
-                         sank through it: use a smaller time_step (a node should move less \
-                         than a quarter of the mean boundary facet per step) or a larger \
-                         penalty"
+                advice: format!(
+                    "{}{}",
+                    match self.method {
+                        Some(ContactMethod::SoftWay | ContactMethod::AugmentedLagrangian) => {
+                            "the body crossed the surface within a step without being caught, or \
+                             sank through it: use a smaller time_step (a node should move less \
+                             than a quarter of the mean boundary facet per step) or a larger \
+                             penalty"
+                        }
+                        _ => {
+                            "the body crossed the surface within a step without being caught: \
+                             use a smaller time_step (a node should move less than a quarter of \
+                             the mean boundary facet per step)"
+                        }
+                    },
+                    if o.facets {
+                        format!(
+                            "; or it was on the solid side all along{}",
+                            super::overlap::facet_hint(true)
+                        )
+                    } else {
+                        String::new()
                     }
-                    _ => {
-                        "the body crossed the surface within a step without being caught: use \
-                         a smaller time_step (a node should move less than a quarter of the \
-                         mean boundary facet per step)"
-                    }
-                }
-                .into(),
-                hint: if o.facets {
-                    format!(
-                        "; or it was on the solid side all along{}",
-                        super::overlap::facet_hint(true)
-                    )
-                } else {
-                    String::new()
-                },
+                ),
             });
         }
         let mut news = Vec::new();

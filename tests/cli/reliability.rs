@@ -371,7 +371,7 @@ fn polyline_drawn_the_wrong_way_is_refused() {
 }
 
 /// A trimesh floor whose triangles run clockwise seen from above is solid above: the 3D block
-/// on it is refused the same way.
+/// on it is refused the same way by `check` and `run`; drawn counter-clockwise, nothing to say.
 #[test]
 fn trimesh_drawn_the_wrong_way_is_refused() {
     let dir = tempdir();
@@ -382,16 +382,19 @@ fn trimesh_drawn_the_wrong_way_is_refused() {
         )
     };
     let (_scenes, file) = scene(&block_3d(mesh, &floor("[[0, 2, 1], [0, 3, 2]]")));
-    let err = assert_invalid(dir.path(), &["check", file.to_str().unwrap()]);
-    // Boundary nodes of a 4 x 2 x 4 box: 75 in all, 9 inside.
-    assert_eq!(
-        err.trim_end(),
-        format!(
-            "error: {}: {}",
-            file.display(),
-            reversed_floor_message(66, "6.000e-1")
-        )
-    );
+    let path = file.to_str().unwrap();
+    for args in [vec!["check", path], vec!["run", path, "--out", "out"]] {
+        let err = assert_invalid(dir.path(), &args);
+        // Boundary nodes of a 4 x 2 x 4 box: 75 in all, 9 inside.
+        assert_eq!(
+            err.trim_end(),
+            format!(
+                "error: {}: {}",
+                file.display(),
+                reversed_floor_message(66, "6.000e-1")
+            )
+        );
+    }
     let (_scenes, file) = scene(&block_3d(mesh, &floor("[[0, 1, 2], [0, 2, 3]]")));
     let o = run_in(dir.path(), &["check", file.to_str().unwrap()]);
     assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
