@@ -55,6 +55,17 @@ where
         vertices: Vec<SVector<f64, D>>,
         facets: impl IntoIterator<Item = ([usize; D], usize)>,
     ) -> Self {
+        // Vertices at the same place are one (a triangle soup shares its edges too).
+        let mut first: HashMap<[u64; D], usize> = HashMap::new();
+        let canonical: Vec<usize> = vertices
+            .iter()
+            .enumerate()
+            .map(|(i, v)| {
+                *first
+                    .entry(std::array::from_fn(|k| v[k].to_bits()))
+                    .or_insert(i)
+            })
+            .collect();
         let mut kept = Vec::new();
         let mut labels = Vec::new();
         let mut normals = Vec::new();
@@ -62,6 +73,7 @@ where
             if f.iter().any(|&i| i >= vertices.len()) {
                 continue;
             }
+            let f = f.map(|i| canonical[i]);
             let (measure, n) = <Dim<D>>::facet_measure_normal(&f.map(|i| vertices[i]));
             if !(measure > 0.0 && measure.is_finite()) {
                 continue;
@@ -377,6 +389,27 @@ mod tests {
         // Below the V's apex (nearest point: the shared vertex): inside; above, in the V: out.
         assert!(v.inside(&Vector2::new(0.0, -0.3)).is_some());
         assert_eq!(v.inside(&Vector2::new(0.0, 0.3)), None);
+    }
+
+    #[test]
+    fn a_triangle_soup_shares_its_edges() {
+        // A floor of two triangles with their own copies of the diagonal's vertices, drawn
+        // counter-clockwise seen from above (solid below): a point under the diagonal, whose
+        // nearest point is on that edge, is inside; one above is not.
+        let v = |x: f64, z: f64| Vector3::new(x, 0.0, z);
+        let s = FacetSolid::<3>::new(
+            vec![
+                v(-1.0, -1.0),
+                v(1.0, 1.0),
+                v(1.0, -1.0),
+                v(-1.0, -1.0),
+                v(-1.0, 1.0),
+                v(1.0, 1.0),
+            ],
+            [([0, 1, 2], 0), ([3, 4, 5], 0)],
+        );
+        assert_eq!(s.inside(&Vector3::new(0.0, -0.5, 0.0)), Some(0.5));
+        assert_eq!(s.inside(&Vector3::new(0.0, 0.5, 0.0)), None);
     }
 
     #[test]
