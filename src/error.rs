@@ -142,6 +142,59 @@ pub enum Error {
         /// What to change.
         advice: String,
     },
+    /// A body starts inside an obstacle or another body deeper than contact detection
+    /// reaches (see [`Simulation::check_overlaps`](crate::simulation::Simulation::check_overlaps)):
+    /// invalid input.
+    #[error(
+        "body `{body}` starts inside {other}: found {nodes} boundary node(s) inside at t = 0, \
+         {beyond} of them deeper than contact detection reaches ({reach:.3e} m, a quarter of \
+         the mean boundary facet), the deepest {depth:.3e} m, expected none that deep: no \
+         contact method would push them out, and the body would fall through or stay stuck; \
+         move the bodies apart in the scene{hint}"
+    )]
+    Overlap {
+        /// The body whose nodes are inside.
+        body: String,
+        /// `body `NAME`` or `obstacle `NAME``.
+        other: String,
+        /// Its boundary nodes inside.
+        nodes: usize,
+        /// Those deeper than `reach`.
+        beyond: usize,
+        /// The deepest (m), distance to the nearest surface of the other.
+        depth: f64,
+        /// The reach of contact detection (m).
+        reach: f64,
+        /// Empty, or the orientation of polyline and trimesh facets.
+        hint: String,
+    },
+    /// Boundary nodes ended a step inside another body, a polyline or a trimesh deeper than
+    /// contact detection reaches, unpaired (see
+    /// [`Simulation::fell_through`](crate::simulation::Simulation::fell_through)).
+    #[error(
+        "fall-through at step {step} (t = {time:.6e} s): {nodes} node(s) of body `{body}` \
+         ended the step inside {other}, the deepest {depth:.3e} m, beyond the reach of contact \
+         detection ({reach:.3e} m), so nothing pushes them out: {advice}"
+    )]
+    FellThrough {
+        /// Step number (1-based).
+        step: usize,
+        /// Time at the end of the step (s).
+        time: f64,
+        /// The body whose nodes are inside.
+        body: String,
+        /// `body `NAME`` or `obstacle `NAME``.
+        other: String,
+        /// Its boundary nodes inside beyond reach.
+        nodes: usize,
+        /// The deepest (m), distance to the nearest surface of the other.
+        depth: f64,
+        /// The reach of contact detection (m).
+        reach: f64,
+        /// What happened and what to change (for a polyline or trimesh, also how its facets
+        /// set its solid side: the body may have been inside all along).
+        advice: String,
+    },
     /// A cell of an updated-Lagrangian body turned inside out in every Newton iterate tried
     /// (after halving the increment), at the step's finest cut.
     #[error(

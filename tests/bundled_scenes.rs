@@ -1,7 +1,8 @@
 //! Every bundled scene without a test of its own runs (shortened where long) with physical
 //! assertions against closed-form solutions (the tilting floor: against the slope's static
 //! balance and atan(mu)). The ring drop and the gripper have theirs
-//! (tests/friction.rs, tests/contact.rs, tests/gripper.rs).
+//! (tests/friction.rs, tests/contact.rs, tests/gripper.rs). None starts with an overlap or
+//! lets a body fall through an obstacle (issue 14).
 #![cfg(feature = "formats")]
 
 mod common;
@@ -21,6 +22,8 @@ where
     let overrides: Vec<String> = overrides.iter().map(|s| s.to_string()).collect();
     let scene = common::fixture::<D>(name, &overrides);
     let sim = scene.simulation().unwrap();
+    // No overlap at t = 0, of any depth.
+    assert_eq!(sim.check_overlaps().unwrap(), [], "{name}");
     let node = (0..sim.reference_positions().len())
         .min_by(|&a, &b| {
             let d = |n: usize| {
@@ -49,6 +52,7 @@ where
         let r = sim
             .step()
             .unwrap_or_else(|e| panic!("t = {}: {e}", sim.state().time));
+        assert_eq!(sim.fell_through(), None, "t = {}", r.time);
         out.push((r.time, sim.state().displacement[node * D + k]));
     }
     out

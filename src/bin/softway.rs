@@ -249,6 +249,10 @@ where
         Ok(s) => s,
         Err(e) => return invalid_in(&loaded.path, &e),
     };
+    let overlaps = match sim.check_overlaps() {
+        Ok(o) => o,
+        Err(e) => return invalid_in(&loaded.path, &e),
+    };
     let s = &scene.settings;
     let kinematics = match s.kinematics {
         Kinematics::PlaneStrain => "plane_strain",
@@ -320,7 +324,7 @@ where
             friction_text(&scene.contact.friction)
         );
     }
-    for overlap in sim.overlaps() {
+    for overlap in overlaps {
         outln!("  warning: {overlap}");
     }
     for p in &scene.probes {
@@ -595,6 +599,7 @@ where
                 Error::NotConverged { .. }
                 | Error::Unstable { .. }
                 | Error::EnergyCreated { .. }
+                | Error::FellThrough { .. }
                 | Error::InvertedCell { .. }
                 | Error::Factorization { .. }
                 | Error::Output { .. } => FAILED,

@@ -5,6 +5,7 @@
 
 pub mod detection;
 pub mod gap;
+pub(crate) mod inside;
 pub(crate) mod methods;
 pub mod obstacle;
 pub mod resolution;

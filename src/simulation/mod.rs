@@ -26,6 +26,7 @@ mod monitor;
 mod newton;
 pub mod observe;
 mod obstacle_motion;
+mod overlap;
 mod rotation;
 pub mod state;
 mod step;
@@ -158,6 +159,10 @@ where
     contact_factors: Vec<linear_solve::ContactFactor>,
     /// Detection (its hierarchy and candidates; its memory is synchronised with the state).
     detector: Option<Detector<D>>,
+    /// The polyline and trimesh obstacles' facets with their adjacency, and every body's
+    /// cells in global node ids: what the overlap check and the fall-through monitor search
+    /// (built at their first use).
+    solids: std::sync::OnceLock<overlap::Solids<D>>,
 }
 
 /// 2D simulation.
@@ -571,6 +576,7 @@ where
                 system: None,
                 contact_factors: Vec::new(),
                 detector,
+                solids: Default::default(),
             },
         };
         sim.state.reference_energy = sim.energies().total();

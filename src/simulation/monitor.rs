@@ -6,17 +6,10 @@
 use std::fmt;
 
 use super::{Energies, Simulation, StepReport};
-use crate::contact::{ContactMethod, Detector, Master, ObstacleShape};
+use crate::contact::{ContactMethod, Detector, Master};
 use crate::dim::{Dim, SpatialDim};
 use crate::error::{Error, Result};
 use crate::time::SpaceTimeScheme;
-
-/// What a body overlaps: another body, or an obstacle (indices in scene order).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
-enum OverlapWith {
-    Body(usize),
-    Obstacle(usize),
-}
 
 /// Nodes of a body inside another body or an obstacle in the current configuration.
 #[derive(Debug, Clone, PartialEq)]
@@ -27,11 +20,18 @@ pub struct Overlap {
     pub other: String,
     /// Nodes inside.
     pub nodes: usize,
-    /// The deepest of them (m; -gap).
+    /// The deepest of them (m): the distance to the nearest surface of the other.
     pub depth: f64,
     /// Whether the other is a polyline or trimesh obstacle (whose solid side is set by the
     /// order of each facet's vertices).
     pub facets: bool,
+    /// The nodes deeper than contact detection reaches into the other (`reach`): no contact
+    /// method ever finds them.
+    pub beyond_reach: usize,
+    /// How deep contact detection reaches into the other (m): its margin, a quarter of the
+    /// mean boundary facet, for another body, a polyline or a trimesh; infinite for a
+    /// half-space, a box or a ball (found at any depth).
+    pub reach: f64,
 }
 
 impl fmt::Display for Overlap {
@@ -43,15 +43,7 @@ impl fmt::Display for Overlap {
              an impulse that is not physical)",
             self.body, self.other, self.nodes, self.depth
         )?;
-        if self.facets {
-            write!(
-                f,
-                "; a polyline is solid on the left of each segment (from its first vertex to its \
-                 second), a trimesh behind each triangle (counter-clockwise seen from outside): \
-                 if the body should be on the other side, reverse each facet's vertex order"
-            )?;
-        }
-        Ok(())
+        write!(f, "{}", super::overlap::facet_hint(self.facets))
     }
 }
 
@@ -81,55 +73,6 @@ impl<const D: usize> Simulation<D>
 where
     Dim<D>: SpatialDim<D>,
 {
-    /// Overlaps in the current configuration deeper than a millionth of the mean boundary
-    /// facet (round-off of bodies placed exactly in touch is not one) and found within four
-    /// mean facets of the surface, one per pair of body and body or obstacle, in order.
-    pub fn overlaps(&self) -> Vec<Overlap> {
-        let Some(template) = self.caches.detector.as_ref() else {
-            return Vec::new();
-        };
-        // The margin is a quarter of the mean facet (see `Simulation::from_model`).
-        let tolerance = 4e-6 * template.options().margin;
-        let mut found: std::collections::BTreeMap<(usize, OverlapWith), (usize, f64)> =
-            Default::default();
-        for p in self.penetrating_pairs(template) {
-            if -p.0 <= tolerance {
-                continue;
-            }
-            let body = self.body_of(p.1);
-            let other = match p.2 {
-                Master::Obstacle(k) => OverlapWith::Obstacle(k),
-                Master::Facet(f) => {
-                    let b = template.surface().facet_body()[f];
-                    // Each pair of bodies once, under the body listed first.
-                    if b < body {
-                        continue;
-                    }
-                    OverlapWith::Body(b)
-                }
-            };
-            let entry = found.entry((body, other)).or_insert((0, 0.0));
-            entry.0 += 1;
-            entry.1 = f64::max(entry.1, -p.0);
-        }
-        found
-            .into_iter()
-            .map(|((body, other), (nodes, depth))| Overlap {
-                body: self.model.bodies[body].name.clone(),
-                other: match other {
-                    OverlapWith::Body(b) => format!("body `{}`", self.model.bodies[b].name),
-                    OverlapWith::Obstacle(k) => {
-                        format!("obstacle `{}`", self.model.obstacles[k].name)
-                    }
-                },
-                nodes,
-                depth,
-                facets: matches!(other, OverlapWith::Obstacle(k)
-                    if matches!(self.model.obstacles[k].shape, ObstacleShape::Facets { .. })),
-            })
-            .collect()
-    }
-
     /// The largest penetration (-gap) in the current configuration (m; 0 when none): what
     /// history.csv's `max_penetration` reports at t = 0.
     pub fn current_penetration(&self) -> f64 {
@@ -159,10 +102,6 @@ where
             .filter(|p| p.gap < 0.0)
             .map(|p| (p.gap, p.slave, p.master))
             .collect()
-    }
-
-    fn body_of(&self, node: usize) -> usize {
-        self.node_offsets.partition_point(|&o| o <= node) - 1
     }
 }
 
@@ -232,7 +171,9 @@ impl RunMonitor {
     }
 
     /// Checks a committed step: `Ok(Some(message))` when a warning threshold is crossed for
-    /// the first time (to log now), an [`Error::EnergyCreated`] when the energy created
+    /// the first time (to log now), an [`Error::FellThrough`] when nodes ended the step inside
+    /// another body or a polyline or trimesh beyond the reach of contact detection
+    /// ([`Simulation::fell_through`]), an [`Error::EnergyCreated`] when the energy created
     /// exceeds [`ENERGY_FAILURE`] times the input.
     pub fn step<const D: usize>(
         &mut self,
@@ -242,6 +183,41 @@ impl RunMonitor {
     where
         Dim<D>: SpatialDim<D>,
     {
+        if let Some(o) = sim.fell_through() {
+            return Err(Error::FellThrough {
+                step: report.step,
+                time: report.time,
+                body: o.body,
+                other: o.other,
+                nodes: o.nodes,
+                depth: o.depth,
+                reach: o.reach,
+                advice: format!(
+                    "{}{}",
+                    match self.method {
+                        Some(ContactMethod::SoftWay | ContactMethod::AugmentedLagrangian) => {
+                            "the body crossed the surface within a step without being caught, or \
+                             sank through it: use a smaller time_step (a node should move less \
+                             than a quarter of the mean boundary facet per step) or a larger \
+                             penalty"
+                        }
+                        _ => {
+                            "the body crossed the surface within a step without being caught: \
+                             use a smaller time_step (a node should move less than a quarter of \
+                             the mean boundary facet per step)"
+                        }
+                    },
+                    if o.facets {
+                        format!(
+                            "; or it was on the solid side all along{}",
+                            super::overlap::facet_hint(true)
+                        )
+                    } else {
+                        String::new()
+                    }
+                ),
+            });
+        }
         let mut news = Vec::new();
         // Q is the invariant of steps of the configured size: a shortened last step leaves a
         // state off that orbit, which says nothing about energy created.

@@ -391,6 +391,21 @@ fn obstacle_motion_schedules() {
     );
 }
 
+/// A body that starts deeper inside an obstacle than contact detection reaches (here a floor
+/// polyline drawn the wrong way round: solid above) cannot be run.
+#[test]
+fn bodies_inside_obstacles() {
+    assert_bad_scene(
+        "polyline_reversed",
+        Expect {
+            key: "floor",
+            marker: None,
+            found: "12 boundary node(s) inside at t = 0",
+            expected: "none that deep",
+        },
+    );
+}
+
 #[test]
 fn selections_and_names() {
     assert_bad_scene(

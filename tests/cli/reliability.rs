@@ -273,14 +273,17 @@ fn zero_area_facet_is_refused() {
     );
 }
 
-/// The block starts 0.1 m inside the floor: `check` says so, the run's summary too, and the
-/// t = 0 row of history.csv reports the overlap as max_penetration.
+/// The block starts 0.05 m inside the floor, within the reach of contact detection (a quarter
+/// of its mean boundary facet, 0.0625 m): `check` says so, the run's summary too, and the
+/// t = 0 row of history.csv reports the overlap as max_penetration. The penalty pushes the
+/// block out in one step, which the energy monitor stops (exit 3): the warning says why.
+/// (At 0.1 m, beyond the reach, the block used to fall through the floor silently.)
 #[test]
 fn overlap_at_t0_is_reported() {
     let dir = tempdir();
-    let (_scenes, file) = scene(&BLOCK.replace("min = [0.0, 0.1]", "min = [0.0, -0.1]"));
+    let (_scenes, file) = scene(&BLOCK.replace("min = [0.0, 0.1]", "min = [0.0, -0.05]"));
     let expected = "body `block` overlaps obstacle `floor` at t = 0: 5 node(s) inside, the \
-                    deepest 1.000e-1 m; move the bodies apart in the scene (contact methods push \
+                    deepest 5.000e-2 m; move the bodies apart in the scene (contact methods push \
                     an overlap out in one step, with an impulse that is not physical); a polyline \
                     is solid on the left of each segment (from its first vertex to its second), \
                     a trimesh behind each triangle (counter-clockwise seen from outside): if the \
@@ -302,7 +305,12 @@ fn overlap_at_t0_is_reported() {
             out.to_str().unwrap(),
         ],
     );
-    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    assert_eq!(o.status.code(), Some(3), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("error: energy created at step 1 "),
+        "{}",
+        stderr(&o)
+    );
     assert!(
         warnings(&out).iter().any(|w| w == expected),
         "{:?}",
@@ -310,24 +318,134 @@ fn overlap_at_t0_is_reported() {
     );
     let history = fs::read_to_string(out.join("history.csv")).unwrap();
     let t0: Vec<&str> = history.lines().nth(1).unwrap().split(',').collect();
-    assert_eq!(t0[8], "0.1", "max_penetration at t = 0: {history}");
+    assert_eq!(t0[8], "0.05", "max_penetration at t = 0: {history}");
 }
 
-/// The same floor drawn left to right is solid above: the block on it is inside, and `check`
-/// says which way round a polyline is solid.
+/// The message of a body that starts inside a floor drawn the wrong way round, `nodes` of
+/// them, the deepest `depth`.
+fn reversed_floor_message(nodes: usize, depth: &str) -> String {
+    format!(
+        "body `block` starts inside obstacle `floor`: found {nodes} boundary node(s) inside at \
+         t = 0, {nodes} of them deeper than contact detection reaches (6.250e-2 m, a quarter of \
+         the mean boundary facet), the deepest {depth} m, expected none that deep: no contact \
+         method would push them out, and the body would fall through or stay stuck; move the \
+         bodies apart in the scene; a polyline is solid on the left of each segment (from its \
+         first vertex to its second), a trimesh behind each triangle (counter-clockwise seen \
+         from outside): if the body should be on the other side, reverse each facet's vertex \
+         order"
+    )
+}
+
+/// The same floor drawn left to right is solid above: the block on it is inside, at any
+/// height, beyond the reach of contact detection, so `check` and `run` refuse it (exit 2,
+/// nothing written) and say which way round a polyline is solid. The bad fixture
+/// `polyline_reversed` drops the block from 1.2 m: it fell through silently before.
 #[test]
-fn polyline_drawn_the_wrong_way_is_reported() {
+fn polyline_drawn_the_wrong_way_is_refused() {
     let dir = tempdir();
     let (_scenes, file) =
         scene(&BLOCK.replace("[[4.0, 0.0], [-4.0, 0.0]]", "[[-4.0, 0.0], [4.0, 0.0]]"));
+    for args in [vec!["check"], vec!["run", "--out", "out"]] {
+        let mut args = args;
+        args.insert(1, file.to_str().unwrap());
+        let err = assert_invalid(dir.path(), &args);
+        assert_eq!(
+            err.trim_end(),
+            format!(
+                "error: {}: {}",
+                file.display(),
+                reversed_floor_message(12, "6.000e-1")
+            )
+        );
+    }
+    let file = bad("polyline_reversed");
+    let err = assert_invalid(dir.path(), &["check", file.to_str().unwrap()]);
+    assert_eq!(
+        err.trim_end(),
+        format!(
+            "error: {}: {}",
+            file.display(),
+            reversed_floor_message(12, "1.700e0")
+        )
+    );
+}
+
+/// A trimesh floor whose triangles run clockwise seen from above is solid above: the 3D block
+/// on it is refused the same way by `check` and `run`; drawn counter-clockwise, nothing to say.
+#[test]
+fn trimesh_drawn_the_wrong_way_is_refused() {
+    let dir = tempdir();
+    let mesh = r#"{ generator = "box", min = [0.0, 0.1, 0.0], max = [1.0, 0.6, 1.0], cells = [4, 2, 4], element = "hex8" }"#;
+    let floor = |indices: &str| {
+        format!(
+            r#"{{ type = "trimesh", vertices = [[-4.0, 0.0, -4.0], [-4.0, 0.0, 4.0], [4.0, 0.0, 4.0], [4.0, 0.0, -4.0]], indices = {indices} }}"#
+        )
+    };
+    let (_scenes, file) = scene(&block_3d(mesh, &floor("[[0, 2, 1], [0, 3, 2]]")));
+    let path = file.to_str().unwrap();
+    for args in [vec!["check", path], vec!["run", path, "--out", "out"]] {
+        let err = assert_invalid(dir.path(), &args);
+        // Boundary nodes of a 4 x 2 x 4 box: 75 in all, 9 inside.
+        assert_eq!(
+            err.trim_end(),
+            format!(
+                "error: {}: {}",
+                file.display(),
+                reversed_floor_message(66, "6.000e-1")
+            )
+        );
+    }
+    let (_scenes, file) = scene(&block_3d(mesh, &floor("[[0, 1, 2], [0, 2, 3]]")));
     let o = run_in(dir.path(), &["check", file.to_str().unwrap()]);
     assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
-    assert!(
-        stdout(&o).contains("  warning: body `block` overlaps obstacle `floor` at t = 0:")
-            && stdout(&o).contains("a polyline is solid on the left of each segment"),
-        "{}",
-        stdout(&o)
+    assert!(!stdout(&o).contains("warning"), "{}", stdout(&o));
+}
+
+/// A block thrown at 300 m/s onto a polyline floor (drawn the right way) crosses it within a
+/// step: the run stops (exit 3) at the step its nodes are found under the floor beyond the
+/// reach of contact detection, and says why; it ran on to the end before.
+#[test]
+fn a_block_through_the_floor_stops_the_run() {
+    let dir = tempdir();
+    let (_scenes, file) = scene(
+        &BLOCK
+            .replace(
+                "min = [0.0, 0.1], max = [1.0, 0.6]",
+                "min = [0.0, 0.01], max = [1.0, 0.51]",
+            )
+            .replace("gravity = [0.0, -9.81]", "")
+            .replace(
+                "density = 1000.0 }",
+                "density = 1000.0 }\ninitial_velocity = [0.0, -300.0]",
+            ),
     );
+    let out = dir.path().join("out");
+    let o = run_in(
+        dir.path(),
+        &[
+            "run",
+            file.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+        ],
+    );
+    let err = stderr(&o);
+    assert_eq!(o.status.code(), Some(3), "{err}");
+    assert!(
+        err.contains(
+            "error: fall-through at step 2 (t = 2.000000e-3 s): 2 node(s) of body `block` ended \
+             the step inside obstacle `floor`, the deepest "
+        ) && err.contains(
+            "beyond the reach of contact detection (6.250e-2 m), so nothing pushes them out: the \
+             body crossed the surface within a step without being caught, or sank through it: \
+             use a smaller time_step (a node should move less than a quarter of the mean \
+             boundary facet per step) or a larger penalty; or it was on the solid side all \
+             along; a polyline is solid on the left"
+        ) && err.contains("history up to step 2 written"),
+        "{err}"
+    );
+    let history = fs::read_to_string(out.join("history.csv")).unwrap();
+    assert_eq!(history.lines().count(), 4, "{history}");
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -612,9 +730,43 @@ fn step_cuts_are_a_warning() {
     );
 }
 
-/// A block resting on the floor with a penalty a million times too soft sinks into it.
+/// A block resting on the floor with a penalty ten thousand times too soft sinks into it,
+/// within the reach of contact detection.
 #[test]
 fn deep_penetration_is_a_warning() {
+    let dir = tempdir();
+    let (_scenes, file) = scene(&BLOCK.replace("min = [0.0, 0.1]", "min = [0.0, 0.0]"));
+    let out = dir.path().join("out");
+    let o = run_in(
+        dir.path(),
+        &[
+            "run",
+            file.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+            "--set",
+            "contact.penalty=2e5",
+            "--set",
+            "simulation.end_time=0.3",
+        ],
+    );
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    assert_eq!(
+        warnings(&out),
+        [
+            "penetration beyond 2.667e-2 m (a tenth of the mean boundary facet) from step 83 (t = \
+          8.300000e-2 s), 5.871e-2 m at most; a larger penalty or a smaller time_step keeps the \
+          bodies apart"
+        ]
+    );
+}
+
+/// With a penalty ten million times too soft the block sinks beyond the reach of contact
+/// detection (a quarter of the mean boundary facet, 6.667e-2 m) and then through the floor:
+/// the run stops there (exit 3). It used to end normally, the block under the floor, with a
+/// penetration warning of 6.676e-2 m at most (the nodes out of reach no longer counted).
+#[test]
+fn a_block_sinking_through_the_floor_stops_the_run() {
     let dir = tempdir();
     let (_scenes, file) = scene(&BLOCK.replace("min = [0.0, 0.1]", "min = [0.0, 0.0]"));
     let out = dir.path().join("out");
@@ -631,14 +783,15 @@ fn deep_penetration_is_a_warning() {
             "simulation.end_time=0.3",
         ],
     );
-    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
-    assert_eq!(
-        warnings(&out),
-        [
-            "penetration beyond 2.667e-2 m (a tenth of the mean boundary facet) from step 75 (t = \
-          7.500000e-2 s), 6.676e-2 m at most; a larger penalty or a smaller time_step keeps the \
-          bodies apart"
-        ]
+    assert_eq!(o.status.code(), Some(3), "{}", stderr(&o));
+    assert!(
+        stderr(&o).starts_with(
+            "error: fall-through at step 118 (t = 1.180000e-1 s): 5 node(s) of body `block` \
+             ended the step inside obstacle `floor`, the deepest 6.787e-2 m, beyond the reach of \
+             contact detection (6.667e-2 m)"
+        ),
+        "{}",
+        stderr(&o)
     );
 }
 

@@ -684,6 +684,13 @@ fn every_bundled_scene_passes_check() {
                 stderr(&o)
             );
             assert!(stdout(&o).contains("valid"));
+            // No overlap at t = 0, of any depth.
+            assert!(
+                !stdout(&o).contains("overlaps"),
+                "{}: {}",
+                path.display(),
+                stdout(&o)
+            );
             n += 1;
         }
     }
