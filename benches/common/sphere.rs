@@ -1,5 +1,5 @@
 //! The swept surfaces of the detection benches (`benches/detection.rs` and
-//! `benches/compare/rapier_broad_phase`, which includes this file by path): closed
+//! `benches/compare/rapier`'s `broad_phase`, which includes this file by path): closed
 //! cube-spheres and a pseudo-random motion of their vertices.
 
 use std::collections::HashMap;

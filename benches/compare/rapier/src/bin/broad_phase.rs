@@ -13,8 +13,8 @@
 //! to the mean edge) find pairs early. softway's detector finds node-facet candidates only,
 //! without a node's own facets and their neighbours.
 //!
-//! Run (from this folder; its own workspace, out of softway's build and CI):
-//! `cargo run --release -- [SUBDIVISIONS...]` (default 29 91: 10,092 and 99,372 facets).
+//! Run (from `benches/compare/rapier`; its own workspace, out of softway's build and CI):
+//! `cargo run --release --bin broad_phase -- [SUBDIVISIONS...]` (default 29 91: 10,092 and 99,372 facets).
 //! Prints the median of 15 updates per side and the ratio.
 
 use std::collections::HashSet;
@@ -24,7 +24,7 @@ use nalgebra::Vector3;
 use rapier3d_f64::prelude::*;
 use softway::contact::detection::{ContactSurface, DetectionOptions, Detector};
 
-#[path = "../../../common/sphere.rs"]
+#[path = "../../../../common/sphere.rs"]
 mod sphere;
 use sphere::{cube_sphere, mean_edge, motion};
 
