@@ -320,6 +320,57 @@ where
     }
 }
 
+/// A thin axisymmetric wall (radii 20 and 22 mm, 60 mm) that bulges by 0.1 mm at mid-height
+/// and so leans by a hair at both ends (tests/tube_crush.rs's tube), self-contact on: nothing
+/// overlaps, and `current_penetration` (history.csv's t = 0 row, the summary's start) says 0.
+/// A detector with the monitors' wide margin does pair inner-face nodes near an end with the
+/// end face, their normals opposed by a hair, at a negative gap: that false pair is what
+/// `current_penetration` reported (0.96 mm on the bundled tube's 1250 cells with the bulge
+/// running to the ends) before it was made the deepest of `overlaps`.
+#[test]
+fn a_wall_leaning_at_its_end_does_not_overlap_itself() {
+    use nalgebra::Vector2;
+    use softway::contact::detection::{DetectionOptions, Detector};
+    let mut mesh = softway::mesh::generators::rectangle(
+        Vector2::new(0.02, 0.0),
+        Vector2::new(0.022, 0.06),
+        [5, 250],
+        ElementKind::Quad4,
+    )
+    .unwrap();
+    for x in &mut mesh.nodes {
+        x.x += 1e-4 * (std::f64::consts::PI * x.y / 0.06).sin();
+    }
+    let sim = Simulation::<2>::builder()
+        .kinematics(Kinematics::Axisymmetric)
+        .time_step(1e-6)
+        .body(Body::new("tube", mesh, elastic()))
+        .contact(ContactSettings {
+            method: ContactMethod::SoftWay,
+            penalty: 1e13,
+            self_contact: true,
+            ..ContactSettings::default()
+        })
+        .build()
+        .unwrap();
+    assert!(sim.overlaps().is_empty(), "{:?}", sim.overlaps());
+    assert_eq!(sim.current_penetration(), 0.0);
+    // The false pair, found as the old measure found it (a margin of four mean facets).
+    let template = sim.detector().unwrap();
+    let options = DetectionOptions {
+        margin: 16.0 * template.options().margin,
+        ..*template.options()
+    };
+    let mut wide = Detector::new(template.surface().clone(), options);
+    let x = sim.positions();
+    wide.update_candidates(&x, &x, &[], &[]);
+    let deepest = wide
+        .pairs(&x, &[])
+        .iter()
+        .fold(0.0f64, |m, p| m.max(-p.gap));
+    assert!(deepest > 1e-4, "no false self pair: {deepest}");
+}
+
 both_dims!(
     a_block_at_rest_makes_no_cycle_warning,
     a_reversed_floor_is_found_at_any_depth,
