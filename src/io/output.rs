@@ -438,11 +438,12 @@ where
         .map_err(fail)?;
     let mut summary = empty_summary();
     summary.warnings = sim.warnings().to_vec();
+    // `Simulation::current_penetration`, from the overlaps in hand.
+    summary.max_penetration = overlaps.iter().fold(0.0, |m: f64, o| m.max(o.depth));
     for overlap in overlaps {
         summary.warnings.push(overlap.to_string());
     }
     summary.initial_energy = sim.initial_energy();
-    summary.max_penetration = sim.current_penetration();
     let mut carried = Carried {
         summary,
         last_history: 0.0,
