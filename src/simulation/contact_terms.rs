@@ -242,8 +242,7 @@ where
             let normal_law = input
                 .method
                 .normal_law(&law_input, input.vars, &self.model.contact);
-            let (normal_force, normal_stiffness, pressure) =
-                (normal_law.force, normal_law.stiffness, normal_law.pressure);
+            let (normal_force, normal_stiffness) = (normal_law.force, normal_law.stiffness);
             let law = self.friction_law(obstacle);
             // d(-friction)/dw1 (w1 the relative end velocity), the elastic slip after the
             // step, and d friction/d F_n (the non-symmetric coupling).
@@ -316,7 +315,9 @@ where
             // Tangent: d(-force)/dv1 on every pair of involved nodes.
             if normal_stiffness > 0.0 || law != FrictionLaw::Frictionless {
                 let nn = normal * normal.transpose();
-                let geometric: Option<Vec<Vec<f64>>> = if pressure > 0.0 {
+                let turning =
+                    normal_law.geometric_force > 0.0 || normal_law.velocity_stiffness > 0.0;
+                let hessian: Option<Vec<Vec<f64>>> = if turning {
                     match pair.master {
                         Master::Facet(f) => {
                             let facet = surface.facets()[f];
@@ -335,6 +336,44 @@ where
                 } else {
                     None
                 };
+                if let (Some(hess), true) = (&hessian, normal_law.velocity_stiffness > 0.0) {
+                    // The force holds w_n = grad(g) . V (V the involved nodes' end velocities
+                    // relative to the master): d w_n / d x = Hess(g) V, and the end positions
+                    // move by h/2 per unit of v1. d(-force)/dv1 gains grad(g) k (h/2) (Hess V)^T.
+                    let mut stacked = vec![0.0; nodes.len() * D];
+                    for (a, &(n, _)) in nodes.iter().enumerate() {
+                        let v = node_v(input.v1, n);
+                        for i in 0..D {
+                            stacked[a * D + i] = v[i];
+                        }
+                    }
+                    if obstacle.is_some() {
+                        for i in 0..D {
+                            stacked[i] -= master_velocity[i];
+                        }
+                    }
+                    let factor = 0.5 * h * normal_law.velocity_stiffness;
+                    let row: Vec<(usize, f64)> = nodes
+                        .iter()
+                        .enumerate()
+                        .flat_map(|(a, &(n, _))| (0..D).map(move |i| (a, n, i)))
+                        .map(|(a, n, i)| {
+                            let q: f64 = (0..stacked.len())
+                                .map(|j| hess[a * D + i][j] * stacked[j])
+                                .sum();
+                            (n * D + i, factor * q)
+                        })
+                        .filter(|&(_, x)| x != 0.0)
+                        .collect();
+                    let column: Vec<(usize, f64)> = nodes
+                        .iter()
+                        .flat_map(|&(n, c)| (0..D).map(move |i| (n * D + i, c * normal[i])))
+                        .filter(|&(_, x)| x != 0.0)
+                        .collect();
+                    if !row.is_empty() {
+                        terms.coupling.push((column, row));
+                    }
+                }
                 if d_normal_force != SVector::<f64, D>::zeros() {
                     // d(-F_t)/dv1 through F_n, which falls by `normal_stiffness` per unit of
                     // n . w1: u v^T with u = B^T mu t, v = B^T n normal_stiffness.
@@ -353,9 +392,9 @@ where
                     for (b, &(nb, cb)) in nodes.iter().enumerate() {
                         let block = (nn * normal_stiffness + friction_tangent) * (ca * cb);
                         block_entries(&mut terms.entries, na, nb, &block);
-                        if let Some(hess) = &geometric {
+                        if let (Some(hess), true) = (&hessian, normal_law.geometric_force != 0.0) {
                             let g = SMatrix::<f64, D, D>::from_fn(|i, j| {
-                                -0.5 * h * pressure * area * hess[a * D + i][b * D + j]
+                                -0.5 * h * normal_law.geometric_force * hess[a * D + i][b * D + j]
                             });
                             block_entries(&mut terms.geometric, na, nb, &g);
                         }

@@ -327,17 +327,16 @@ where
             .collect()
     }
 
-    /// Solves `(M/h + alpha C + K_t + K_c) x = b` directly, `K_t` the element kernel's tangent values
-    /// (the path of laws that are not linear: the matrix changes every iteration, so it is
-    /// factored every iteration, with the symbolic analysis of the contact-free matrix).
-    pub(super) fn solve_with_tangent(
+    /// Factors `M/h + alpha C + K_t + K_c`, `K_t` the element kernel's tangent values (the path
+    /// of laws that are not linear: the matrix changes every iteration, so it is factored every
+    /// iteration, with the symbolic analysis of the contact-free matrix).
+    pub(super) fn factor_with_tangent(
         &self,
         tangent_values: &[f64],
         entries: &[(usize, usize, f64)],
-        b: &[f64],
         h: f64,
         step: usize,
-    ) -> Result<Vec<f64>> {
+    ) -> Result<SparseCholesky> {
         let mut base = self.pattern.matrix(tangent_values);
         let (col_ptr, row_idx) = (
             base.symbolic().col_ptr().to_vec(),
@@ -380,9 +379,7 @@ where
         let matrix = self.contact_matrix(&base, &self.free_entries(entries))?;
         let mut cholesky = self.system().cholesky.unfactored_copy();
         cholesky.factor_any(&matrix, step)?;
-        let mut x = b.to_vec();
-        cholesky.solve_in_place(&mut x);
-        Ok(x)
+        Ok(cholesky)
     }
 
     /// A symbolic analysis to factor `matrix` with: shared with the newest contact
@@ -525,8 +522,8 @@ where
 
     /// Solves `(A0 + K_c) x = b` to a residual norm of `target` by conjugate gradients
     /// preconditioned with the nearest factored matrix (see the module documentation).
-    /// `None` when the tangent has a geometric part, the difference is not of low rank, or CG
-    /// does not converge in time: the caller then factors `A0 + K_c`.
+    /// `None` when the difference is not of low rank, or CG meets a direction of non-positive
+    /// curvature or does not converge in time: the caller then factors `A0 + K_c`.
     pub(super) fn preconditioned_solve(
         &self,
         entries: &[(usize, usize, f64)],
@@ -535,10 +532,10 @@ where
         target: f64,
     ) -> Option<Vec<f64>> {
         let system = self.caches.system.as_ref()?;
-        if !geometric.is_empty() {
-            return None;
-        }
-        let entries = self.free_entries(entries);
+        // The geometric part enters the operator (CG stops on a direction of non-positive
+        // curvature, and the caller factors instead).
+        let mut entries = self.free_entries(entries);
+        entries.extend(self.free_entries(geometric));
         let now = self.free_contact_diagonal(&entries);
         // The nearest factorisation; ties go to the most recent contact one.
         let mut nearest: Option<&ContactFactor> = None;

@@ -66,15 +66,74 @@ const SECANT_UNTIL: f64 = 1e-1;
 /// Halvings of a Newton increment that turned a cell inside out (1e-6 of it at most).
 const MAX_INVERSION_BACKTRACKS: usize = 20;
 
-/// Most slipping Coulomb contacts whose threshold-to-gap coupling enters the Newton solve
-/// (one extra symmetric solve each); beyond, Newton goes on without it (quasi-Newton).
+/// Most rank-one terms (slipping Coulomb contacts, held normal velocities on a turning
+/// normal) that enter a Newton solve (one extra symmetric solve each); beyond, Newton goes on
+/// without them (quasi-Newton).
 const MAX_COUPLED: usize = 64;
 
-/// Whether the coupled solve is on. Off for now: with it, tests/pipeline.rs's retried step no
-/// longer reproduced the uninterrupted one bit for bit (3D, soft way with Coulomb: the retry
-/// needed a step cut), a dependence on something outside the state not found yet. Off, slip's
-/// coupling is left out (symmetric quasi-Newton with backtracking).
+/// Whether the coupled solve is on for every method. Implicit projection always uses it
+/// ([`Method::coupled_tangent`]); for the penalty methods' Coulomb slip it is off: with it,
+/// tests/pipeline.rs's retried step no longer reproduced the uninterrupted one bit for bit
+/// (3D, soft way with Coulomb: the retry needed a step cut), a dependence on something outside
+/// the state not found yet. Off, slip's coupling is left out (symmetric quasi-Newton with
+/// backtracking).
 const COUPLED_SOLVE: bool = false;
+
+/// A solve with the symmetric part of the iteration matrix: right-hand side and residual target
+/// in, solution out.
+type SymmetricSolve<'a> = dyn FnMut(&[f64], f64) -> Result<Vec<f64>> + 'a;
+
+/// Solves `(S + sum u v^T) x = b`, `S` the symmetric part of the iteration matrix (solved by
+/// `solve`, to a residual target) and `u v^T` the non-symmetric rank-one terms of the tangent
+/// (Coulomb slip's threshold coupled to the gap; a held normal velocity whose normal turns), by
+/// the Sherman-Morrison-Woodbury formula: `x = x0 - Z (I + V^T Z)^-1 V^T x0`, `x0 = S^-1 b`,
+/// `Z = S^-1 U`. The Cholesky factorisations only ever see `S`. Prescribed unknowns take no
+/// part. A singular capacitance matrix leaves `x0` (Newton goes on without the coupling).
+fn woodbury(
+    solve: &mut SymmetricSolve<'_>,
+    coupling: &[RankOne],
+    prescribed: &[Option<f64>],
+    b: &[f64],
+    target: f64,
+) -> Result<Vec<f64>> {
+    let ndof = b.len();
+    let mut x = solve(b, target)?;
+    let m = coupling.len();
+    if m == 0 {
+        return Ok(x);
+    }
+    let mut z = Vec::with_capacity(m);
+    for (u, _) in coupling {
+        let mut rhs = vec![0.0; ndof];
+        for &(i, a) in u {
+            if prescribed[i].is_none() {
+                rhs[i] += a;
+            }
+        }
+        let norm = rhs.iter().map(|r| r * r).sum::<f64>().sqrt();
+        z.push(solve(&rhs, 1e-10 * norm)?);
+    }
+    let mut g = nalgebra::DMatrix::<f64>::identity(m, m);
+    let mut r = nalgebra::DVector::<f64>::zeros(m);
+    for (k, (_, v)) in coupling.iter().enumerate() {
+        for &(i, c) in v {
+            if prescribed[i].is_none() {
+                r[k] += c * x[i];
+                for (l, zl) in z.iter().enumerate() {
+                    g[(k, l)] += c * zl[i];
+                }
+            }
+        }
+    }
+    if let Some(y) = g.lu().solve(&r) {
+        for (l, zl) in z.iter().enumerate() {
+            for i in 0..ndof {
+                x[i] -= zl[i] * y[l];
+            }
+        }
+    }
+    Ok(x)
+}
 
 /// What a step starts from.
 pub(super) struct StepStart<const D: usize> {
@@ -143,71 +202,21 @@ where
                 .any(|o| o.friction.is_some_and(|f| f != FrictionLaw::Frictionless))
     }
 
-    /// A solve with the symmetric contact iteration matrix `A0 + entries` (no geometric part):
-    /// the nearest factorisation with conjugate gradients, or a new factorisation.
+    /// A solve with the symmetric contact iteration matrix `A0 + entries + geometric`: the
+    /// nearest factorisation with conjugate gradients, or a new factorisation.
     fn symmetric_solve(
         &mut self,
         entries: &[(usize, usize, f64)],
+        geometric: &[(usize, usize, f64)],
         b: &[f64],
         target: f64,
         h: f64,
         step: usize,
     ) -> Result<Vec<f64>> {
-        match self.preconditioned_solve(entries, &[], b, target) {
+        match self.preconditioned_solve(entries, geometric, b, target) {
             Some(x) => Ok(x),
-            None => self.factor_contact(entries, &[], b, target, h, step),
+            None => self.factor_contact(entries, geometric, b, target, h, step),
         }
-    }
-
-    /// Solves `(A0 + entries + sum u v^T) x = b`, the iteration matrix with the non-symmetric
-    /// coupling of Coulomb slip (one rank-one term per slipping contact), by the
-    /// Sherman-Morrison-Woodbury formula on symmetric solves:
-    /// `x = x0 - Z (I + V^T Z)^-1 V^T x0`, `x0 = S^-1 b`, `Z = S^-1 U`. The Cholesky only ever
-    /// sees the symmetric part; the geometric part of the tangent is left out here.
-    fn solve_coupled(
-        &mut self,
-        entries: &[(usize, usize, f64)],
-        coupling: &[RankOne],
-        b: &[f64],
-        target: f64,
-        h: f64,
-        step: usize,
-    ) -> Result<Vec<f64>> {
-        let ndof = b.len();
-        let mut x = self.symmetric_solve(entries, b, target, h, step)?;
-        let m = coupling.len();
-        let mut z = Vec::with_capacity(m);
-        for (u, _) in coupling {
-            let mut rhs = vec![0.0; ndof];
-            for &(i, a) in u {
-                if self.prescribed[i].is_none() {
-                    rhs[i] += a;
-                }
-            }
-            let norm = rhs.iter().map(|r| r * r).sum::<f64>().sqrt();
-            z.push(self.symmetric_solve(entries, &rhs, 1e-10 * norm, h, step)?);
-        }
-        let mut g = nalgebra::DMatrix::<f64>::identity(m, m);
-        let mut r = nalgebra::DVector::<f64>::zeros(m);
-        for (k, (_, v)) in coupling.iter().enumerate() {
-            for &(i, c) in v {
-                if self.prescribed[i].is_none() {
-                    r[k] += c * x[i];
-                    for (l, zl) in z.iter().enumerate() {
-                        g[(k, l)] += c * zl[i];
-                    }
-                }
-            }
-        }
-        // A singular capacitance matrix: go on without the coupling.
-        if let Some(y) = g.lu().solve(&r) {
-            for (l, zl) in z.iter().enumerate() {
-                for i in 0..ndof {
-                    x[i] -= zl[i] * y[l];
-                }
-            }
-        }
-        Ok(x)
     }
 
     /// Newton with the contact method's outer loop: the end velocities of the step.
@@ -523,37 +532,49 @@ where
                 .collect();
             // Linear solves go only as far as Newton needs: a tenth of its tolerance.
             let target = 0.1 * tolerance * scale;
+            // The non-symmetric rank-one terms of the tangent, when the method solves with them.
+            let coupling: &[RankOne] = if (COUPLED_SOLVE || method.coupled_tangent())
+                && terms.coupling.len() <= MAX_COUPLED
+            {
+                &terms.coupling
+            } else {
+                &[]
+            };
             if general {
                 let mut entries = terms.entries.clone();
                 entries.extend_from_slice(&terms.geometric);
-                increment =
-                    self.solve_with_tangent(&tangent_values, &entries, &increment, h, step)?;
+                // As in the linear path: where the contact's geometric part makes the matrix
+                // indefinite, Newton goes on without it.
+                let factor = match self.factor_with_tangent(&tangent_values, &entries, h, step) {
+                    Err(_) if !terms.geometric.is_empty() => {
+                        self.factor_with_tangent(&tangent_values, &terms.entries, h, step)?
+                    }
+                    factor => factor?,
+                };
+                let prescribed = &self.prescribed;
+                increment = woodbury(
+                    &mut |r, _| {
+                        let mut x = r.to_vec();
+                        factor.solve_in_place(&mut x);
+                        Ok(x)
+                    },
+                    coupling,
+                    prescribed,
+                    &increment,
+                    target,
+                )?;
             } else if terms.entries.is_empty() {
                 self.solve_contact_free(&mut increment);
-            } else if COUPLED_SOLVE
-                && !terms.coupling.is_empty()
-                && terms.coupling.len() <= MAX_COUPLED
-            {
-                increment = self.solve_coupled(
-                    &terms.entries,
-                    &terms.coupling,
-                    &increment,
-                    target,
-                    h,
-                    step,
-                )?;
-            } else if let Some(x) =
-                self.preconditioned_solve(&terms.entries, &terms.geometric, &increment, target)
-            {
-                increment = x;
             } else {
-                increment = self.factor_contact(
-                    &terms.entries,
-                    &terms.geometric,
+                let prescribed = self.prescribed.clone();
+                increment = woodbury(
+                    &mut |r, target| {
+                        self.symmetric_solve(&terms.entries, &terms.geometric, r, target, h, step)
+                    },
+                    coupling,
+                    &prescribed,
                     &increment,
                     target,
-                    h,
-                    step,
                 )?;
             }
             let mut inc2 = 0.0;

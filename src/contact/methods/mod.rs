@@ -73,9 +73,16 @@ pub(crate) struct NormalLaw {
     pub force: f64,
     /// `d force / d (n . w1)`, w1 the relative end velocity (N s/m).
     pub stiffness: f64,
-    /// Contact pressure (Pa) where the force comes from a penalty on the gap (the
-    /// geometric tangent's factor), else 0.
-    pub pressure: f64,
+    /// The normal force (N) whose direction turns with the gap's gradient, the factor of the
+    /// geometric tangent `-(h/2) F Hess(g)`: the penalty's force, or an active constraint's
+    /// (negative in tension); 0 where no force acts.
+    pub geometric_force: f64,
+    /// `d force / d (n . w1)` (N s/m) through the normal velocity itself, where the force
+    /// holds `w_n = n . w1` (implicit projection's velocity branch): `w_n` also changes with
+    /// the positions, through the normal and the closest point, and that variation, `(h/2)
+    /// Hess(g) w1` per unit of the end positions, enters the tangent with this factor (a
+    /// non-symmetric rank-one term). 0 where the force depends on the gap only.
+    pub velocity_stiffness: f64,
 }
 
 /// One pair's forces in an iteration, as the outer updates and the records see them.
@@ -224,6 +231,12 @@ pub(crate) trait Method: Sync {
     /// Whether pairs between deformable surfaces are kept in both directions (each at half
     /// the contact area) rather than one pass.
     fn symmetric_pairs(&self) -> bool {
+        false
+    }
+
+    /// Whether Newton solves with the non-symmetric rank-one terms of the tangent (by the
+    /// Sherman-Morrison-Woodbury formula on symmetric solves) rather than without them.
+    fn coupled_tangent(&self) -> bool {
         false
     }
 

@@ -16,7 +16,8 @@ pub(crate) fn penalty_law(lambda: f64, input: &NormalInput, zeta: f64) -> Normal
         NormalLaw {
             force: p * input.area,
             stiffness: 0.5 * input.time_step * zeta * input.area,
-            pressure: p,
+            geometric_force: p * input.area,
+            velocity_stiffness: 0.0,
         }
     } else {
         NormalLaw::default()
@@ -42,7 +43,8 @@ pub(crate) fn secant_penalty_law(input: &NormalInput, zeta: f64) -> NormalLaw {
     NormalLaw {
         force: p * input.area,
         stiffness: (-dp_dg1).max(0.0) * 0.5 * input.time_step * input.area,
-        pressure: p,
+        geometric_force: p * input.area,
+        velocity_stiffness: 0.0,
     }
 }
 
