@@ -195,6 +195,39 @@ pub enum Error {
         /// set its solid side: the body may have been inside all along).
         advice: String,
     },
+    /// Boundary nodes passed through an obstacle within a step and ended outside it on its far
+    /// side, unseen by contact detection (see
+    /// [`Simulation::tunnelled`](crate::simulation::Simulation::tunnelled)).
+    #[error(
+        "tunnelling at step {step} (t = {time:.6e} s): {nodes} node(s) of body `{body}` passed \
+         through {other} within the step and ended outside it on the far side, where contact \
+         detection does not see them (node {node} at {speed:.3e} m/s relative to it: \
+         {travel:.3e} m in the step, {inside:.3e} m of it inside); the step is too long for the \
+         speed: the body crossed the obstacle in one step; use a smaller time_step (well below \
+         the {crossing_time:.3e} s the crossing took) or a thicker obstacle"
+    )]
+    Tunnelled {
+        /// Step number (1-based).
+        step: usize,
+        /// Time at the end of the step (s).
+        time: f64,
+        /// The body whose nodes passed through.
+        body: String,
+        /// The fastest of them (index in its body's mesh).
+        node: usize,
+        /// `obstacle `NAME``.
+        other: String,
+        /// Nodes that passed through.
+        nodes: usize,
+        /// The fastest node's speed relative to the obstacle (m/s).
+        speed: f64,
+        /// Its path relative to the obstacle over the step (m).
+        travel: f64,
+        /// The part of it inside the obstacle (m).
+        inside: f64,
+        /// The time the crossing took (s).
+        crossing_time: f64,
+    },
     /// A cell of an updated-Lagrangian body turned inside out in every Newton iterate tried
     /// (after halving the increment), at the step's finest cut.
     #[error(

@@ -600,6 +600,7 @@ where
                 | Error::Unstable { .. }
                 | Error::EnergyCreated { .. }
                 | Error::FellThrough { .. }
+                | Error::Tunnelled { .. }
                 | Error::InvertedCell { .. }
                 | Error::Factorization { .. }
                 | Error::Output { .. } => FAILED,

@@ -24,6 +24,9 @@ use crate::dim::{Dim, SpatialDim};
 use crate::element::ElementKind;
 use crate::geometry::{Aabb, BoxTree, FacetProjection, Feature, GeometryDim};
 
+/// Where a segment crosses a surface: the fraction of the way, and the outward normal there.
+type Cut<const D: usize> = (f64, SVector<f64, D>);
+
 /// Oriented facets (segments in 2D, triangles in 3D) with a hierarchy and their adjacency.
 pub(crate) struct FacetSolid<const D: usize>
 where
@@ -43,6 +46,8 @@ where
     edge_facets: HashMap<(usize, usize), Vec<usize>>,
     /// Vertices on a free end (2D: one segment; 3D: on an edge of one triangle).
     free: Vec<bool>,
+    /// The vertex each vertex is merged into (the first at the same place).
+    canonical: Vec<usize>,
 }
 
 impl<const D: usize> FacetSolid<D>
@@ -124,6 +129,7 @@ where
             vertex_facets,
             edge_facets,
             free,
+            canonical,
         }
     }
 
@@ -140,11 +146,12 @@ where
         Some(Self::new(vertices.clone(), facets))
     }
 
-    /// The nearest facet labelled as `accept` says to `p`: (distance, facet, projection).
+    /// The nearest facet that `accept(label, facet)` accepts to `p`: (distance, facet,
+    /// projection).
     fn nearest(
         &self,
         p: &SVector<f64, D>,
-        accept: impl Fn(usize) -> bool,
+        accept: impl Fn(usize, usize) -> bool,
     ) -> Option<(f64, usize, FacetProjection<D>)> {
         if self.facets.is_empty() || !p.iter().all(|c| c.is_finite()) {
             return None;
@@ -164,7 +171,7 @@ where
             hits.sort_unstable();
             let mut best: Option<(f64, usize, FacetProjection<D>)> = None;
             for &f in &hits {
-                if !accept(self.labels[f]) || self.boxes[f].distance(&point) > r {
+                if !accept(self.labels[f], f) || self.boxes[f].distance(&point) > r {
                     continue;
                 }
                 let v = self.facets[f].map(|i| self.vertices[i]);
@@ -191,13 +198,31 @@ where
 
     /// The distance from `p` to the nearest facet labelled `label` (m).
     pub(crate) fn distance(&self, p: &SVector<f64, D>, label: usize) -> Option<f64> {
-        self.nearest(p, |l| l == label).map(|b| b.0)
+        self.nearest(p, |l, _| l == label).map(|b| b.0)
+    }
+
+    /// The distance from `p` to the nearest facet labelled `label` none of whose vertices is
+    /// in `apart` (indices into the vertices given at construction) (m).
+    pub(crate) fn distance_apart(
+        &self,
+        p: &SVector<f64, D>,
+        label: usize,
+        apart: &[usize],
+    ) -> Option<f64> {
+        let apart: Vec<usize> = apart
+            .iter()
+            .filter_map(|&v| self.canonical.get(v).copied())
+            .collect();
+        self.nearest(p, |l, f| {
+            l == label && !self.facets[f].iter().any(|v| apart.contains(v))
+        })
+        .map(|b| b.0)
     }
 
     /// `Some(depth)` when `p` is on the solid side (behind the pseudo-normal of its nearest
     /// point, not on a free end), the depth being the distance to that point (m).
     pub(crate) fn inside(&self, p: &SVector<f64, D>) -> Option<f64> {
-        let (d, f, q) = self.nearest(p, |_| true)?;
+        let (d, f, q) = self.nearest(p, |_, _| true)?;
         let facet = self.facets[f];
         let n = match q.feature {
             Feature::Face => self.normals[f],
@@ -221,6 +246,45 @@ where
             }
         };
         ((p - q.point).dot(&n) < 0.0).then_some(d)
+    }
+
+    /// Where the segment from `y0` to `y1` (m) enters the facets first and leaves them last:
+    /// ((fraction of the way from `y0`, facet normal), (fraction of the way back from `y1`,
+    /// facet normal)), an entry crossing a facet against its outward normal and an exit along
+    /// it; `None` without both, or when the exit comes before the entry.
+    fn entry_and_exit(
+        &self,
+        y0: &SVector<f64, D>,
+        y1: &SVector<f64, D>,
+    ) -> Option<(Cut<D>, Cut<D>)> {
+        let d = y1 - y0;
+        let mut hits = Vec::new();
+        self.tree.query(&Aabb::from_points([y0, y1]), &mut hits);
+        let mut entry: Option<(f64, usize)> = None;
+        let mut exit: Option<(f64, usize)> = None;
+        for &f in &hits {
+            let s = d.dot(&self.normals[f]);
+            // Along the facet's plane: neither in nor out.
+            if !(s.abs() > 1e-12 * d.norm()) {
+                continue;
+            }
+            let v = self.facets[f].map(|i| self.vertices[i]);
+            let Some(t) = <Dim<D>>::segment_crosses_facet(y0, y1, &v) else {
+                continue;
+            };
+            if s < 0.0 && entry.is_none_or(|e| (t, f) < e) {
+                entry = Some((t, f));
+            } else if s > 0.0 && exit.is_none_or(|e| (t, f) > e) {
+                exit = Some((t, f));
+            }
+        }
+        let ((t_in, f_in), (t_out, f_out)) = (entry?, exit?);
+        (t_in < t_out).then(|| {
+            (
+                (t_in, self.normals[f_in]),
+                (1.0 - t_out, self.normals[f_out]),
+            )
+        })
     }
 
     /// The angle of facet `g` at its vertex `v` (rad; 1 for a segment).
@@ -258,6 +322,81 @@ where
             (g < 0.0).then_some(-g)
         }
     }
+}
+
+/// A node's straight path over a step through an obstacle (see [`passes_through`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct Crossing {
+    /// The length of the path relative to the obstacle (m).
+    pub(crate) travel: f64,
+    /// The length of it inside the obstacle, from where it entered to where it left (m).
+    pub(crate) inside: f64,
+}
+
+/// Whether a node going from `x0` (obstacle `o` in its pose `o0` at the start of the step) to
+/// `x1` (pose `o1` at its end) passed through the obstacle: its straight path in the frame of
+/// the obstacle's shape at t = 0 (`to_local` at either pose, so that a moving or turning
+/// obstacle is followed) starts and ends outside, crosses the surface inwards and then
+/// outwards, its middle between the two crossings is inside, and it left on the far side (the
+/// outward normals where it entered and where it left oppose each other) or went deeper than
+/// `reach` (m). A node that slides along the surface, rests on it or rounds a convex corner
+/// by a short chord does neither. Half-spaces have no far side: `None`. `solid` is the
+/// obstacle's [`FacetSolid`] for a polyline or trimesh (an open one has no far side either).
+pub(crate) fn passes_through<const D: usize>(
+    o0: &Obstacle<D>,
+    o1: &Obstacle<D>,
+    solid: Option<&FacetSolid<D>>,
+    x0: &SVector<f64, D>,
+    x1: &SVector<f64, D>,
+    reach: f64,
+) -> Option<Crossing>
+where
+    Dim<D>: SpatialDim<D>,
+{
+    let (y0, y1) = (o0.to_local(x0), o1.to_local(x1));
+    let travel = (y1 - y0).norm();
+    if !(travel > 0.0 && travel.is_finite()) {
+        return None;
+    }
+    // (fraction in, normal in), (fraction back from y1 out, normal out), depth of the middle.
+    let (entry, exit, depth) = match &o0.shape {
+        ObstacleShape::Halfspace { .. } => return None,
+        ObstacleShape::Box {
+            center,
+            half_extents,
+        } => {
+            let (a, b) = (y0 - center, y1 - center);
+            let entry = <Dim<D>>::segment_hits_box(&a, &b, half_extents)?;
+            let exit = <Dim<D>>::segment_hits_box(&b, &a, half_extents)?;
+            let mid = a + (b - a) * (0.5 * (entry.0 + 1.0 - exit.0));
+            let depth = (0..D)
+                .map(|k| half_extents[k] - mid[k].abs())
+                .fold(f64::INFINITY, f64::min);
+            (entry, exit, depth)
+        }
+        ObstacleShape::Ball { center, radius } => {
+            let (a, b) = (y0 - center, y1 - center);
+            let entry = <Dim<D>>::segment_hits_ball(&a, &b, *radius)?;
+            let exit = <Dim<D>>::segment_hits_ball(&b, &a, *radius)?;
+            let mid = a + (b - a) * (0.5 * (entry.0 + 1.0 - exit.0));
+            (entry, exit, radius - mid.norm())
+        }
+        ObstacleShape::Facets { .. } => {
+            let s = solid?;
+            let (entry, exit) = s.entry_and_exit(&y0, &y1)?;
+            if s.inside(&y0).is_some() || s.inside(&y1).is_some() {
+                return None;
+            }
+            let mid = y0 + (y1 - y0) * (0.5 * (entry.0 + 1.0 - exit.0));
+            (entry, exit, s.inside(&mid)?)
+        }
+    };
+    // A cast that starts inside (or on the surface) stops at once: both ends are outside.
+    let inside = (1.0 - entry.0 - exit.0) * travel;
+    if !(entry.0 > 0.0 && exit.0 > 0.0 && inside > 0.0 && depth > 1e-9 * travel) {
+        return None;
+    }
+    (entry.1.dot(&exit.1) < 0.0 || depth > reach).then_some(Crossing { travel, inside })
 }
 
 /// A hierarchy of the boxes of bodies' cells in their current configuration; the cells are
@@ -298,6 +437,35 @@ where
         hits.iter().any(|&c| {
             let (b, kind, nodes) = &cells[c];
             if *b != body {
+                return false;
+            }
+            let corners: Vec<SVector<f64, D>> = nodes.iter().map(|&n| x[n]).collect();
+            in_cell(*kind, &corners, p)
+        })
+    }
+}
+
+impl<const D: usize> CellIndex<D>
+where
+    Dim<D>: SpatialDim<D>,
+{
+    /// Whether a cell of body `body` that does not hold node `node` holds `p`: a node in its
+    /// own body elsewhere than in its own cells (or on a cell it only touches: a node
+    /// duplicated at the same place, a hanging node; the caller's depth tells those apart).
+    pub(crate) fn holds_apart(
+        &self,
+        p: &SVector<f64, D>,
+        node: usize,
+        body: usize,
+        cells: &[(usize, ElementKind, Vec<usize>)],
+        x: &[SVector<f64, D>],
+        hits: &mut Vec<usize>,
+    ) -> bool {
+        hits.clear();
+        self.tree.query(&Aabb { min: *p, max: *p }, hits);
+        hits.iter().any(|&c| {
+            let (b, kind, nodes) = &cells[c];
+            if *b != body || nodes.contains(&node) {
                 return false;
             }
             let corners: Vec<SVector<f64, D>> = nodes.iter().map(|&n| x[n]).collect();
@@ -436,6 +604,53 @@ mod tests {
         assert_eq!(s.inside(&Vector3::new(-0.1, -0.1, -0.1)), None);
         assert_eq!(s.inside(&Vector3::new(0.5, -0.1, -0.1)), None);
         assert_eq!(s.inside(&Vector3::new(0.4, 0.4, 0.4)), None);
+    }
+
+    /// A path through a thin box, one that slides along it, one that rounds its corner, and
+    /// the same box turned by a quarter turn over the step (the path followed in its frame).
+    #[test]
+    fn paths_through_obstacles() {
+        let plate = Obstacle::new(
+            "plate",
+            ObstacleShape::Box {
+                center: Vector2::new(0.0, 0.0),
+                half_extents: Vector2::new(1.0, 0.02),
+            },
+        );
+        let through = |o0: &Obstacle<2>, o1: &Obstacle<2>, a: [f64; 2], b: [f64; 2]| {
+            passes_through(
+                o0,
+                o1,
+                None,
+                &Vector2::new(a[0], a[1]),
+                &Vector2::new(b[0], b[1]),
+                0.01,
+            )
+        };
+        let c = through(&plate, &plate, [0.0, 0.1], [0.0, -0.4]).unwrap();
+        assert!((c.travel - 0.5).abs() < 1e-12 && (c.inside - 0.04).abs() < 1e-12);
+        // Ends inside, starts inside, slides along the top, rounds the corner.
+        assert!(through(&plate, &plate, [0.0, 0.1], [0.0, 0.0]).is_none());
+        assert!(through(&plate, &plate, [0.0, 0.0], [0.0, -0.4]).is_none());
+        assert!(through(&plate, &plate, [-0.5, 0.02], [0.5, 0.02]).is_none());
+        assert!(through(&plate, &plate, [0.95, 0.025], [1.01, 0.0]).is_none());
+        // A ball cut by a shallow chord (deeper than the reach) and a grazing one.
+        let ball = Obstacle::new(
+            "ball",
+            ObstacleShape::Ball {
+                center: Vector2::new(0.0, 0.0),
+                radius: 1.0,
+            },
+        );
+        assert!(through(&ball, &ball, [-2.0, 0.95], [2.0, 0.95]).is_some());
+        assert!(through(&ball, &ball, [-0.2, 1.0], [0.2, 0.995]).is_none());
+        // The plate turned by a quarter turn about its centre over the step (it stands along
+        // y at the end): a node at rest beside its end at x = 1.1 is passed through by it in
+        // its frame; one at rest far away is not.
+        let mut turned = plate.clone();
+        turned.rotation = nalgebra::Matrix2::new(0.0, -1.0, 1.0, 0.0);
+        assert!(through(&plate, &turned, [0.1, 0.5], [0.1, 0.5]).is_some());
+        assert!(through(&plate, &turned, [3.0, 3.0], [3.0, 3.0]).is_none());
     }
 
     #[test]

@@ -171,6 +171,33 @@ pub trait GeometryDim<const D: usize>: sealed::Sealed {
         v: &[SVector<f64, D>; D],
     ) -> Option<FacetProjection<D>>;
 
+    /// Where the segment from `p0` to `p1` (m) meets the solid box `[-half, half]` (m) first:
+    /// the fraction of the way (0 when `p0` is inside or on it) and the box's outward normal
+    /// there; `None` when it misses (parry's solid ray cast).
+    fn segment_hits_box(
+        p0: &SVector<f64, D>,
+        p1: &SVector<f64, D>,
+        half: &SVector<f64, D>,
+    ) -> Option<(f64, SVector<f64, D>)>;
+
+    /// Where the segment from `p0` to `p1` (m) meets the solid ball of radius `radius` (m)
+    /// about the origin first: the fraction of the way (0 when `p0` is inside or on it) and the
+    /// outward normal there; `None` when it misses (parry's solid ray cast).
+    fn segment_hits_ball(
+        p0: &SVector<f64, D>,
+        p1: &SVector<f64, D>,
+        radius: f64,
+    ) -> Option<(f64, SVector<f64, D>)>;
+
+    /// The fraction of the way from `p0` to `p1` (m) at which the segment crosses the facet
+    /// with vertices `v` (m) (segment in 2D, triangle in 3D; either side); `None` when it
+    /// misses (parry's ray cast).
+    fn segment_crosses_facet(
+        p0: &SVector<f64, D>,
+        p1: &SVector<f64, D>,
+        v: &[SVector<f64, D>; D],
+    ) -> Option<f64>;
+
     /// The same projection computed by parry (`PointQueryWithLocation`): the test oracle for
     /// [`GeometryDim::project_on_facet`]. Returns the point and the barycentric weights.
     #[doc(hidden)]
@@ -236,10 +263,57 @@ macro_rules! impl_tree {
     };
 }
 
+/// The segment casts of [`GeometryDim`] through parry's `RayCast`, the same in 2D and 3D.
+macro_rules! impl_casts {
+    ($D:literal, $parry:ident, $to:expr, $from:expr) => {
+        fn segment_hits_box(
+            p0: &SVector<f64, $D>,
+            p1: &SVector<f64, $D>,
+            half: &SVector<f64, $D>,
+        ) -> Option<(f64, SVector<f64, $D>)> {
+            use $parry::query::RayCast;
+            let ray = $parry::query::Ray::new($to(p0), $to(&(p1 - p0)));
+            $parry::shape::Cuboid::new($to(half))
+                .cast_local_ray_and_get_normal(&ray, 1.0, true)
+                .map(|hit| (hit.time_of_impact, $from(hit.normal)))
+        }
+
+        fn segment_hits_ball(
+            p0: &SVector<f64, $D>,
+            p1: &SVector<f64, $D>,
+            radius: f64,
+        ) -> Option<(f64, SVector<f64, $D>)> {
+            use $parry::query::RayCast;
+            let ray = $parry::query::Ray::new($to(p0), $to(&(p1 - p0)));
+            $parry::shape::Ball::new(radius)
+                .cast_local_ray_and_get_normal(&ray, 1.0, true)
+                .map(|hit| (hit.time_of_impact, $from(hit.normal)))
+        }
+    };
+}
+
 impl GeometryDim<2> for Dim<2> {
     impl_tree!(2, parry2d_f64, |v: &SVector<f64, 2>| {
         parry2d_f64::math::Vector::new(v[0], v[1])
     });
+    impl_casts!(
+        2,
+        parry2d_f64,
+        |v: &SVector<f64, 2>| parry2d_f64::math::Vector::new(v[0], v[1]),
+        |v: parry2d_f64::math::Vector| SVector::<f64, 2>::new(v.x, v.y)
+    );
+
+    fn segment_crosses_facet(
+        p0: &SVector<f64, 2>,
+        p1: &SVector<f64, 2>,
+        v: &[SVector<f64, 2>; 2],
+    ) -> Option<f64> {
+        use parry2d_f64::math::Vector;
+        use parry2d_f64::query::RayCast;
+        let g = |x: &SVector<f64, 2>| Vector::new(x.x, x.y);
+        let ray = parry2d_f64::query::Ray::new(g(p0), g(&(p1 - p0)));
+        parry2d_f64::shape::Segment::new(g(&v[0]), g(&v[1])).cast_local_ray(&ray, 1.0, false)
+    }
 
     fn project_on_facet(
         p: &SVector<f64, 2>,
@@ -287,6 +361,25 @@ impl GeometryDim<3> for Dim<3> {
     impl_tree!(3, parry3d_f64, |v: &SVector<f64, 3>| {
         parry3d_f64::math::Vector::new(v[0], v[1], v[2])
     });
+    impl_casts!(
+        3,
+        parry3d_f64,
+        |v: &SVector<f64, 3>| parry3d_f64::math::Vector::new(v[0], v[1], v[2]),
+        |v: parry3d_f64::math::Vector| SVector::<f64, 3>::new(v.x, v.y, v.z)
+    );
+
+    fn segment_crosses_facet(
+        p0: &SVector<f64, 3>,
+        p1: &SVector<f64, 3>,
+        v: &[SVector<f64, 3>; 3],
+    ) -> Option<f64> {
+        use parry3d_f64::math::Vector;
+        use parry3d_f64::query::RayCast;
+        let g = |x: &SVector<f64, 3>| Vector::new(x.x, x.y, x.z);
+        let ray = parry3d_f64::query::Ray::new(g(p0), g(&(p1 - p0)));
+        parry3d_f64::shape::Triangle::new(g(&v[0]), g(&v[1]), g(&v[2]))
+            .cast_local_ray(&ray, 1.0, false)
+    }
 
     fn project_on_facet(
         p: &SVector<f64, 3>,
@@ -411,6 +504,59 @@ mod tests {
     #[test]
     fn projection_matches_parry_3d() {
         check::<3>(2);
+    }
+
+    /// Segments against a box, a ball and facets: the fraction of the way, the outward
+    /// normal, misses.
+    #[test]
+    fn segment_casts() {
+        use nalgebra::{Vector2, Vector3};
+        let half = Vector3::new(1.0, 0.1, 1.0);
+        let (t, n) = <Dim<3>>::segment_hits_box(
+            &Vector3::new(0.0, 1.0, 0.0),
+            &Vector3::new(0.0, -1.0, 0.0),
+            &half,
+        )
+        .unwrap();
+        assert!((t - 0.45).abs() < 1e-12 && (n - Vector3::y()).norm() < 1e-12);
+        assert!(<Dim<3>>::segment_hits_box(
+            &Vector3::new(0.0, 1.0, 0.0),
+            &Vector3::new(0.0, 0.2, 0.0),
+            &half
+        )
+        .is_none());
+        let (t, n) =
+            <Dim<2>>::segment_hits_ball(&Vector2::new(-2.0, 0.0), &Vector2::new(2.0, 0.0), 1.0)
+                .unwrap();
+        assert!((t - 0.25).abs() < 1e-12 && (n + Vector2::x()).norm() < 1e-12);
+        let tri = [
+            Vector3::new(0.0, 0.0, 0.0),
+            Vector3::new(1.0, 0.0, 0.0),
+            Vector3::new(0.0, 0.0, 1.0),
+        ];
+        let up = Vector3::new(0.2, 1.0, 0.2);
+        let down = Vector3::new(0.2, -3.0, 0.2);
+        let t = <Dim<3>>::segment_crosses_facet(&up, &down, &tri).unwrap();
+        assert!((t - 0.25).abs() < 1e-12);
+        assert_eq!(
+            <Dim<3>>::segment_crosses_facet(&down, &up, &tri),
+            Some(0.75)
+        );
+        assert!(<Dim<3>>::segment_crosses_facet(&up, &(up * 2.0), &tri).is_none());
+        let seg = [Vector2::new(-1.0, 0.0), Vector2::new(1.0, 0.0)];
+        let t = <Dim<2>>::segment_crosses_facet(
+            &Vector2::new(0.5, 1.0),
+            &Vector2::new(0.5, -1.0),
+            &seg,
+        )
+        .unwrap();
+        assert!((t - 0.5).abs() < 1e-12);
+        assert!(<Dim<2>>::segment_crosses_facet(
+            &Vector2::new(1.5, 1.0),
+            &Vector2::new(1.5, -1.0),
+            &seg
+        )
+        .is_none());
     }
 
     #[test]

@@ -37,7 +37,7 @@ pub use contacts::{ContactEvent, ContactMaster, ContactPoint, Touching};
 pub use fixed_timestep::{FixedTimestep, FrameReport};
 pub use handles::{BodyId, ObstacleId, Slots};
 pub use model::{Body, Constraint, MassKind, Model, RayleighDamping, Settings};
-pub use monitor::{energy_created, Overlap, RunMonitor, ENERGY_FAILURE, ENERGY_WARNING};
+pub use monitor::{energy_created, Overlap, RunMonitor, Tunnel, ENERGY_FAILURE, ENERGY_WARNING};
 pub use rotation::SMALL_STRAIN_ROTATION_LIMIT;
 pub use state::{ContactMemory, FactorRecord, MasterId, State};
 pub use symmetric_matrix::SymmetricMatrix;
@@ -144,6 +144,9 @@ where
     /// Active sets that came back in the step under way, over all its attempts (cut ones
     /// included): an output of the step, not state.
     step_cycles: usize,
+    /// The step just taken as detection swept it (one per piece of a cut step), for the
+    /// tunnelling watch ([`Simulation::tunnelled`]): an output of the step, not state.
+    sweeps: Vec<overlap::Sweep<D>>,
     caches: Caches<D>,
 }
 
@@ -572,6 +575,7 @@ where
             general_path,
             contact_log: Default::default(),
             step_cycles: 0,
+            sweeps: Vec::new(),
             caches: Caches {
                 system: None,
                 contact_factors: Vec::new(),
@@ -664,6 +668,7 @@ where
         }
         self.state = state;
         self.contact_log.clear();
+        self.sweeps.clear();
         Ok(())
     }
 

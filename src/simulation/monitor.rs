@@ -47,6 +47,28 @@ impl fmt::Display for Overlap {
     }
 }
 
+/// Nodes of a body that passed through an obstacle within the last step and ended outside it
+/// on its far side ([`Simulation::tunnelled`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Tunnel {
+    /// The body whose nodes passed through.
+    pub body: String,
+    /// The fastest of them: its index in its body's mesh.
+    pub node: usize,
+    /// What they passed through: `obstacle `NAME``.
+    pub other: String,
+    /// Nodes that passed through.
+    pub nodes: usize,
+    /// The fastest node's speed relative to the obstacle over the step (m/s).
+    pub speed: f64,
+    /// Its path relative to the obstacle over the step (m).
+    pub travel: f64,
+    /// The part of that path inside the obstacle (m).
+    pub inside: f64,
+    /// The time it took to cross the obstacle (s): the step times `inside / travel`.
+    pub crossing_time: f64,
+}
+
 /// The fraction of the input energy a run may create before a warning:
 /// `E(t) + max(dissipated, 0) > (1 + ENERGY_WARNING) (E(0) + |external work|)`.
 pub const ENERGY_WARNING: f64 = 0.05;
@@ -151,7 +173,9 @@ impl RunMonitor {
     /// Checks a committed step: `Ok(Some(message))` when a warning threshold is crossed for
     /// the first time (to log now), an [`Error::FellThrough`] when nodes ended the step inside
     /// another body or a polyline or trimesh beyond the reach of contact detection
-    /// ([`Simulation::fell_through`]), an [`Error::EnergyCreated`] when the energy created
+    /// ([`Simulation::fell_through`]), an [`Error::Tunnelled`] when nodes passed through an
+    /// obstacle within the step and ended outside it on its far side
+    /// ([`Simulation::tunnelled`]), an [`Error::EnergyCreated`] when the energy created
     /// exceeds [`ENERGY_FAILURE`] times the input.
     pub fn step<const D: usize>(
         &mut self,
@@ -194,6 +218,20 @@ impl RunMonitor {
                         String::new()
                     }
                 ),
+            });
+        }
+        if let Some(t) = sim.tunnelled() {
+            return Err(Error::Tunnelled {
+                step: report.step,
+                time: report.time,
+                body: t.body,
+                node: t.node,
+                other: t.other,
+                nodes: t.nodes,
+                speed: t.speed,
+                travel: t.travel,
+                inside: t.inside,
+                crossing_time: t.crossing_time,
             });
         }
         let mut news = Vec::new();

@@ -1,14 +1,19 @@
-//! Nodes inside another body or an obstacle at any depth (`contact::inside`): the overlaps at
-//! t = 0 ([`Simulation::overlaps`], [`Simulation::check_overlaps`]) and the fall-through
-//! monitor ([`Simulation::fell_through`]), which contact detection alone cannot see beyond its
-//! margin.
+//! Nodes inside another body, the body itself or an obstacle at any depth
+//! (`contact::inside`): the overlaps at t = 0 ([`Simulation::overlaps`],
+//! [`Simulation::check_overlaps`]) and the fall-through monitor ([`Simulation::fell_through`]),
+//! which contact detection alone cannot see beyond its margin; and the tunnelling watch
+//! ([`Simulation::tunnelled`]): nodes that passed through an obstacle within a step and ended
+//! outside it, where no test of the end of the step can see them.
 
 use std::collections::BTreeMap;
 
-use super::monitor::Overlap;
+use nalgebra::SVector;
+
+use super::monitor::{Overlap, Tunnel};
 use super::Simulation;
-use crate::contact::inside::{obstacle_depth, CellIndex, FacetSolid};
-use crate::contact::{Master, ObstacleShape};
+use crate::contact::detection::{ContactSurface, Detector};
+use crate::contact::inside::{obstacle_depth, passes_through, CellIndex, FacetSolid};
+use crate::contact::{Master, Obstacle, ObstacleShape};
 use crate::dim::{Dim, SpatialDim};
 use crate::element::ElementKind;
 use crate::error::{Error, Result};
@@ -29,6 +34,45 @@ where
 {
     obstacles: Vec<Option<FacetSolid<D>>>,
     cells: Vec<(usize, ElementKind, Vec<usize>)>,
+}
+
+/// A step (or a piece of a cut step) as detection swept it: node positions at its start and
+/// end (the gaps' configuration, m), the obstacles' poses at both, its length (s), and the
+/// broad phase's (node, obstacle) pairs against boxes, balls, polylines and trimeshes.
+pub(crate) struct Sweep<const D: usize> {
+    pub(crate) x0: Vec<SVector<f64, D>>,
+    pub(crate) x1: Vec<SVector<f64, D>>,
+    pub(crate) obstacles_t0: Vec<Obstacle<D>>,
+    pub(crate) obstacles_t1: Vec<Obstacle<D>>,
+    pub(crate) h: f64,
+    pub(crate) candidates: Vec<(usize, usize)>,
+}
+
+/// The last broad phase's (node, obstacle) pairs against obstacles a node can pass through
+/// (boxes, balls, polylines, trimeshes): the tunnelling watch's prefilter (the node's path
+/// over the step meets the obstacle's region swept over it, grown by the margin). `None` when
+/// there is no such obstacle.
+pub(crate) fn through_candidates<const D: usize>(
+    detector: &Detector<D>,
+    obstacles: &[Obstacle<D>],
+) -> Option<Vec<(usize, usize)>>
+where
+    Dim<D>: SpatialDim<D>,
+{
+    let solid = |k: usize| !matches!(obstacles[k].shape, ObstacleShape::Halfspace { .. });
+    if !(0..obstacles.len()).any(solid) {
+        return None;
+    }
+    Some(
+        detector
+            .candidates()
+            .iter()
+            .filter_map(|&(n, m)| match m {
+                Master::Obstacle(k) if solid(k) => Some((n, k)),
+                _ => None,
+            })
+            .collect(),
+    )
 }
 
 /// A slave node inside something, with its depth (m).
@@ -78,17 +122,28 @@ where
     }
 
     /// Every boundary node inside another body or an obstacle in the current configuration,
-    /// at any depth; `analytic` includes half-spaces, boxes and balls; `skip(node, other)`
-    /// leaves a pair out before its depth is computed.
+    /// at any depth; `analytic` includes half-spaces, boxes and balls; `itself` includes
+    /// nodes inside their own body's cells (not the cells that hold them); `skip(node,
+    /// other)` leaves a pair out before its depth is computed.
     fn nodes_inside(
         &self,
         analytic: bool,
+        itself: bool,
         skip: impl Fn(usize, Inside) -> bool,
     ) -> Vec<NodeInside> {
-        let Some(detector) = self.caches.detector.as_ref() else {
-            return Vec::new();
+        // Without contact detection (one body, no obstacle, no self-contact) only the body's
+        // own cells are searched, on its boundary built here.
+        let built;
+        let surface = match self.caches.detector.as_ref() {
+            Some(detector) => detector.surface(),
+            None if itself => {
+                let meshes: Vec<&crate::mesh::Mesh<D>> =
+                    self.model.bodies.iter().map(|b| &b.mesh).collect();
+                built = ContactSurface::from_bodies(&meshes, &self.node_offsets);
+                &built
+            }
+            None => return Vec::new(),
         };
-        let surface = detector.surface();
         let x = self.positions();
         let obstacles = self.posed_obstacles();
         let solids = self.solids();
@@ -111,6 +166,20 @@ where
                 }
             }
         }
+        // The cells' hierarchy and the bodies' surfaces, built when first needed.
+        let mut cells: Option<CellIndex<D>> = None;
+        let mut surfaces: Option<FacetSolid<D>> = None;
+        let bodies_surface = || {
+            FacetSolid::new(
+                x.clone(),
+                surface
+                    .facets()
+                    .iter()
+                    .copied()
+                    .zip(surface.facet_body().iter().copied()),
+            )
+        };
+        let mut hits = Vec::new();
         if self.model.bodies.len() > 1 {
             // Only nodes in another body's box, not already paired with it, are tested
             // against its cells: in a run, nodes near another body are its candidates, so
@@ -138,29 +207,49 @@ where
                 })
                 .filter(|&(node, _, b)| !skip(node, Inside::Body(b)))
                 .collect();
-            if !pending.is_empty() {
-                let cells = CellIndex::new(&solids.cells, &x);
-                // The bodies' surfaces, built when a node is first found in another's cell.
-                let mut surfaces: Option<FacetSolid<D>> = None;
-                let mut hits = Vec::new();
-                for (node, body, b) in pending {
-                    if !cells.holds(&x[node], b, &solids.cells, &x, &mut hits) {
-                        continue;
-                    }
-                    let s = surfaces.get_or_insert_with(|| {
-                        FacetSolid::new(
-                            x.clone(),
-                            surface
-                                .facets()
-                                .iter()
-                                .copied()
-                                .zip(surface.facet_body().iter().copied()),
-                        )
-                    });
-                    let depth = s.distance(&x[node], b).unwrap_or(0.0);
+            for (node, body, b) in pending {
+                let index = cells.get_or_insert_with(|| CellIndex::new(&solids.cells, &x));
+                if !index.holds(&x[node], b, &solids.cells, &x, &mut hits) {
+                    continue;
+                }
+                let s = surfaces.get_or_insert_with(bodies_surface);
+                let depth = s.distance(&x[node], b).unwrap_or(0.0);
+                found.push(NodeInside {
+                    body,
+                    other: Inside::Body(b),
+                    depth,
+                });
+            }
+        }
+        if itself {
+            // A node in a cell of its own body that does not hold it: the mesh folds onto
+            // itself. Its depth is the distance to the body's surface without the facets
+            // around the node and their neighbours (those hold it or are next to it), so that
+            // a node that only touches such a cell (duplicated at the same place, or hanging
+            // on a face) is at depth 0, or a millionth of those facets.
+            let index = cells.get_or_insert_with(|| CellIndex::new(&solids.cells, &x));
+            let mut ring = Vec::new();
+            for (&node, &body) in surface.slaves().iter().zip(surface.slave_body()) {
+                if skip(node, Inside::Body(body))
+                    || !index.holds_apart(&x[node], node, body, &solids.cells, &x, &mut hits)
+                {
+                    continue;
+                }
+                ring.clear();
+                for &f in surface.facets_of_node(node) {
+                    ring.extend_from_slice(&surface.facets()[f]);
+                }
+                let s = surfaces.get_or_insert_with(bodies_surface);
+                let depth = s.distance_apart(&x[node], body, &ring).unwrap_or(0.0);
+                // Round-off, relative to the facets around the node.
+                let size = ring
+                    .iter()
+                    .map(|&r| (x[r] - x[node]).norm())
+                    .fold(0.0, f64::max);
+                if depth > 1e-6 * size {
                     found.push(NodeInside {
                         body,
-                        other: Inside::Body(b),
+                        other: Inside::Body(body),
                         depth,
                     });
                 }
@@ -211,6 +300,7 @@ where
         Overlap {
             body: self.model.bodies[body].name.clone(),
             other: match other {
+                Inside::Body(b) if b == body => "itself".into(),
                 Inside::Body(b) => format!("body `{}`", self.model.bodies[b].name),
                 Inside::Obstacle(k) => format!("obstacle `{}`", self.model.obstacles[k].name),
             },
@@ -228,7 +318,9 @@ where
     }
 
     /// Overlaps in the current configuration, of any depth: boundary nodes of a body inside
-    /// another body (in one of its cells) or an obstacle (on its solid side: see
+    /// another body (in one of its cells), itself (in one of its cells that does not hold the
+    /// node: a mesh folded onto itself; [`Overlap::other`] is `itself`) or an obstacle (on its
+    /// solid side: see
     /// `contact::inside`), deeper than a millionth of the mean boundary facet (round-off of
     /// bodies placed exactly in touch is not one), one per body and what its nodes are inside
     /// (two bodies that overlap each other: one for each), in scene order. The depth is the distance to the nearest
@@ -237,7 +329,7 @@ where
     pub fn overlaps(&self) -> Vec<Overlap> {
         // The reach is a quarter of the mean facet: a millionth of the facet.
         let tolerance = 4e-6 * self.detection_reach();
-        let found = self.nodes_inside(true, |_, _| false);
+        let found = self.nodes_inside(true, true, |_, _| false);
         self.group(&found, tolerance)
             .into_iter()
             .map(|(k, v)| self.overlap(k, v))
@@ -258,7 +350,11 @@ where
                 beyond: o.beyond_reach,
                 depth: o.depth,
                 reach: o.reach,
-                hint: facet_hint(o.facets),
+                hint: if o.other == "itself" {
+                    SELF_OVERLAP_HINT.into()
+                } else {
+                    facet_hint(o.facets)
+                },
             });
         }
         Ok(overlaps)
@@ -294,7 +390,7 @@ where
         reached.dedup();
         let reach = self.detection_reach();
         let found: Vec<NodeInside> = self
-            .nodes_inside(false, |n, o| reached.binary_search(&(n, o)).is_ok())
+            .nodes_inside(false, false, |n, o| reached.binary_search(&(n, o)).is_ok())
             .into_iter()
             .filter(|n| n.depth > reach)
             .collect();
@@ -304,6 +400,78 @@ where
             .map(|(k, v)| self.overlap(k, v))
     }
 }
+
+impl<const D: usize> Simulation<D>
+where
+    Dim<D>: SpatialDim<D>,
+{
+    /// The tunnelling watch: boundary nodes whose straight path over the last step (each piece
+    /// of a cut step), relative to an obstacle, passed through it and ended outside on its far
+    /// side (see `contact::inside::passes_through`): a fast body that crossed a thin box, a
+    /// small ball or a closed trimesh within one step, which no test of the end of the step
+    /// sees. Only the pairs the broad phase found (the node's path meets the obstacle's
+    /// region swept over the step) are tested. The (body, obstacle) with the most such nodes,
+    /// named by its fastest node; `None` when there is none. Half-spaces and open polylines
+    /// or trimeshes have no far side ([`Simulation::fell_through`] watches those); bodies
+    /// passing through each other within a step are not watched.
+    pub fn tunnelled(&self) -> Option<Tunnel> {
+        if self.sweeps.is_empty() {
+            return None;
+        }
+        let reach = self.detection_reach();
+        let solids = self.solids();
+        let n = self.reference.len();
+        // (body, obstacle) -> (nodes, fastest: (speed, node, travel, inside, h)).
+        type Fastest = (f64, usize, f64, f64, f64);
+        let mut groups: BTreeMap<(usize, usize), (usize, Fastest)> = BTreeMap::new();
+        for sweep in &self.sweeps {
+            if sweep.x0.len() != n || sweep.x1.len() != n {
+                continue;
+            }
+            for &(node, k) in &sweep.candidates {
+                let Some(c) = passes_through(
+                    &sweep.obstacles_t0[k],
+                    &sweep.obstacles_t1[k],
+                    solids.obstacles[k].as_ref(),
+                    &sweep.x0[node],
+                    &sweep.x1[node],
+                    reach,
+                ) else {
+                    continue;
+                };
+                let body = self.node_offsets.partition_point(|&o| o <= node) - 1;
+                let speed = c.travel / sweep.h;
+                let e = groups
+                    .entry((body, k))
+                    .or_insert((0, (f64::NEG_INFINITY, 0, 0.0, 0.0, 0.0)));
+                e.0 += 1;
+                if speed > e.1 .0 {
+                    e.1 = (speed, node, c.travel, c.inside, sweep.h);
+                }
+            }
+        }
+        groups
+            .into_iter()
+            .max_by(|a, b| a.1 .0.cmp(&b.1 .0).then(b.0.cmp(&a.0)))
+            .map(
+                |((body, k), (nodes, (speed, node, travel, inside, h)))| Tunnel {
+                    body: self.model.bodies[body].name.clone(),
+                    node: node - self.node_offsets[body],
+                    other: format!("obstacle `{}`", self.model.obstacles[k].name),
+                    nodes,
+                    speed,
+                    travel,
+                    inside,
+                    crossing_time: h * inside / travel,
+                },
+            )
+    }
+}
+
+/// Appended to the messages about a body that overlaps itself.
+pub(crate) const SELF_OVERLAP_HINT: &str =
+    "; or rather, since it overlaps itself, fix its mesh: cells of one part of it lie over \
+     cells of another (a mesh folded onto itself, arms that cross)";
 
 /// The orientation of polyline and trimesh facets, appended to messages about them.
 pub(crate) fn facet_hint(facets: bool) -> String {

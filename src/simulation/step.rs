@@ -46,6 +46,7 @@ where
         let saved = self.state.clone();
         let saved_log = self.contact_log.clone();
         self.step_cycles = 0;
+        self.sweeps.clear();
         match self.advance_cut(h, recorder, 0, true) {
             Ok(mut r) => {
                 self.close_contact_log(&r.contact_forces);
@@ -55,6 +56,7 @@ where
             Err(e) => {
                 self.state = saved;
                 self.contact_log = saved_log;
+                self.sweeps.clear();
                 Err(e)
             }
         }
@@ -427,6 +429,7 @@ where
         // Final gaps in the stored configuration.
         let mut max_penetration: f64 = 0.0;
         let mut contacts = Vec::new();
+        let mut swept = None;
         if let Some(detector) = self.caches.detector.as_mut() {
             let x_end = end_positions(&self.reference, &gap_u1, &v1, &vec![0.0; ndof], 0.0);
             detector.update_candidates_posed(
@@ -435,6 +438,8 @@ where
                 &start.obstacles_t0,
                 &start.obstacles_t1,
             );
+            swept = super::overlap::through_candidates(detector, &start.obstacles_t0)
+                .map(|candidates| (x_end.clone(), candidates));
             for p in detector.pairs(&x_end, &start.obstacles_t1) {
                 max_penetration = max_penetration.max(-p.gap);
                 let force = terms
@@ -518,6 +523,16 @@ where
             });
         }
         self.log_contacts(&terms.pairs, &terms.forces);
+        if let Some((x1, candidates)) = swept {
+            self.sweeps.push(super::overlap::Sweep {
+                x0: start.x0,
+                x1,
+                obstacles_t0: start.obstacles_t0,
+                obstacles_t1: start.obstacles_t1,
+                h,
+                candidates,
+            });
+        }
         let report = StepReport {
             step,
             time: t0 + h,

@@ -406,6 +406,33 @@ fn bodies_inside_obstacles() {
     );
 }
 
+/// A mesh that overlaps itself (a Gmsh file whose two squares share no node and overlap by
+/// half their side) cannot be run: its nodes are deeper inside it than contact detection
+/// reaches.
+#[test]
+fn meshes_that_overlap_themselves() {
+    assert_bad_scene(
+        "mesh_overlaps_itself",
+        Expect {
+            key: "sheet",
+            marker: None,
+            found: "2 boundary node(s) inside at t = 0",
+            expected: "none that deep",
+        },
+    );
+    let file = bad("mesh_overlaps_itself");
+    let dir = tempdir();
+    let err = assert_invalid(dir.path(), &["check", file.to_str().unwrap()]);
+    assert!(
+        err.contains("body `sheet` starts inside itself")
+            && err.trim_end().ends_with(
+                "; or rather, since it overlaps itself, fix its mesh: cells of one part of it \
+                 lie over cells of another (a mesh folded onto itself, arms that cross)"
+            ),
+        "{err}"
+    );
+}
+
 #[test]
 fn selections_and_names() {
     assert_bad_scene(

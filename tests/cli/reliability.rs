@@ -448,6 +448,64 @@ fn a_block_through_the_floor_stops_the_run() {
     assert_eq!(history.lines().count(), 4, "{history}");
 }
 
+/// A block thrown at 5 m/s at a plate 4 cm thick (a box) with steps of 0.1 s: its lower nodes
+/// go from above the plate to under it within the first step, so none ends inside it and
+/// nothing is detected; the run stops there (exit 3) and says why (it flew on under the plate
+/// before). With steps of 1 ms the block lands on the plate: exit 0, no warning.
+#[test]
+fn a_block_through_a_thin_plate_stops_the_run() {
+    let dir = tempdir();
+    let (_scenes, file) = scene(
+        &BLOCK
+            .replace("gravity = [0.0, -9.81]", "")
+            .replace(
+                "density = 1000.0 }",
+                "density = 1000.0 }\ninitial_velocity = [0.0, -5.0]",
+            )
+            .replace(
+                r#"{ type = "polyline", vertices = [[4.0, 0.0], [-4.0, 0.0]], indices = [[0, 1]] }"#,
+                r#"{ type = "box", center = [0.5, 0.0], half_extents = [4.0, 0.02] }"#,
+            )
+            .replace("method = \"soft_way\"\npenalty = 1.0e10", "method = \"implicit_projection\"")
+            .replace("name = \"floor\"", "name = \"plate\""),
+    );
+    let out = dir.path().join("out");
+    let run = |h: &str, end: &str| {
+        run_in(
+            dir.path(),
+            &[
+                "run",
+                file.to_str().unwrap(),
+                "--out",
+                out.to_str().unwrap(),
+                "--set",
+                &format!("simulation.time_step={h}"),
+                "--set",
+                &format!("simulation.end_time={end}"),
+            ],
+        )
+    };
+    let o = run("0.1", "0.3");
+    let err = stderr(&o);
+    assert_eq!(o.status.code(), Some(3), "{err}");
+    assert!(
+        err.contains(
+            "error: tunnelling at step 1 (t = 1.000000e-1 s): 7 node(s) of body `block` passed \
+             through obstacle `plate` within the step and ended outside it on the far side, where \
+             contact detection does not see them (node "
+        ) && err.contains(
+            " at 5.000e0 m/s relative to it: 5.000e-1 m in the step, 4.000e-2 m of it inside); \
+             the step is too long for the speed: the body crossed the obstacle in one step; use \
+             a smaller time_step (well below the 8.000e-3 s the crossing took) or a thicker \
+             obstacle"
+        ) && err.contains("history up to step 1 written"),
+        "{err}"
+    );
+    let o = run("1e-3", "0.04");
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    assert!(warnings(&out).is_empty(), "{:?}", warnings(&out));
+}
+
 // ---------------------------------------------------------------------------------------------
 // Messages.
 
