@@ -4,10 +4,12 @@
 //! 4 and 8 threads. Prints, per pool, whether the factor values and the solutions have the
 //! bits of the sequential ones, and the median times.
 //!
-//! Run: `cargo run --release --no-default-features --features parallel,internals --example
-//! thread_report [-- CELLS_PER_EDGE [REPETITIONS [library]]]` (defaults 20 and 3; `library`:
-//! only the library's `SparseCholesky`, not faer on its own). The library's section takes the
-//! pools in turns, so that a burst of load on a shared machine falls on one repetition of each.
+//! Run: `cargo run --release --no-default-features --features parallel-factor,internals
+//! --example thread_report [-- CELLS_PER_EDGE [REPETITIONS [library|stress]]]` (defaults 20
+//! and 3). `library`: only the library's `SparseCholesky`, not faer on its own; its pools take
+//! turns, so that a burst of load on a shared machine falls on one repetition of each.
+//! `stress`: the threaded factorisation repeated beside a sequential one in another thread,
+//! against the sequential factor's solution.
 
 mod common;
 

@@ -200,7 +200,7 @@ both_dims!(every_method_and_law_is_thread_independent);
 
 /// A Hex8 cube dropped on a floor with the soft way, its contact-free and contact matrices
 /// large enough (2.4 million factor entries) that the factorisations run on the rayon pool's
-/// threads: the same bits on 1, 2 and 4 threads.
+/// threads (feature `parallel-factor`): the same bits on 1, 2 and 4 threads.
 #[test]
 fn threaded_factorisations_are_thread_independent() {
     use nalgebra::Vector3;
@@ -259,7 +259,7 @@ fn threaded_factorisations_are_thread_independent() {
 }
 
 /// The scene above takes the threaded factorisation: its factor is above the threshold.
-#[cfg(feature = "internals")]
+#[cfg(all(feature = "internals", feature = "parallel-factor"))]
 #[test]
 fn the_thread_test_cube_is_factored_with_threads() {
     use nalgebra::Vector3;

@@ -1,14 +1,16 @@
 //! Sparse linear solves: faer's supernodal Cholesky with the symbolic analysis (fill-reducing
 //! ordering, elimination tree, supernodes) done once per sparsity pattern.
 //!
-//! Threads (feature `parallel`): the numeric factorisation of a large factor runs its dense
-//! kernels on the rayon pool's threads ([`factor_parallelism`]). Its values have the same bits
-//! for any number of threads: faer visits the supernodes in one fixed order, its dense
-//! Cholesky blocks by fixed sizes, and its matrix products share out tiles of the output,
-//! each summed over the whole depth by one thread (measured: `examples/thread_report.rs`,
-//! identical factors on 1, 2, 4 and 8 threads). The triangular solves stay sequential: faer's
-//! threaded solve splits the depth of a matrix-vector product among the threads and adds
-//! their partial sums, so its result changes with the thread count.
+//! Threads (feature `parallel-factor`, off by default): the numeric factorisation of a large
+//! factor runs its dense kernels on the rayon pool's threads (`factor_parallelism`). Its
+//! values have the same bits for any number of threads: faer visits the supernodes in one
+//! fixed order, its dense Cholesky blocks by fixed sizes, and its matrix products share out
+//! tiles of the output, each summed over the whole depth by one thread (measured:
+//! `examples/thread_report.rs`, identical factors on 1, 2, 4 and 8 threads). It is off by
+//! default because on the project's 2-core machine, shared with other work, two threads took
+//! 1.1 to 2x the time of one at 2.4, 18 and 70 million factor entries. The triangular solves
+//! stay sequential: faer's threaded solve splits the depth of a matrix-vector product among the
+//! threads and adds their partial sums, so its result changes with the thread count.
 
 mod ordering;
 
@@ -27,17 +29,19 @@ use faer::{Conj, Par, Side};
 
 use crate::error::{Error, Result};
 
-/// Factors with at least this many entries are computed with threads (feature `parallel`);
-/// smaller ones sequentially, where handing out work costs more than it saves.
+/// Factors with at least this many entries are computed with threads (feature
+/// `parallel-factor`); smaller ones sequentially. A round figure, not a measured break-even:
+/// on the project's shared 2-core machine two threads were slower at every size measured,
+/// from 2.4 million entries (1.1x the time of one thread) up.
 #[doc(hidden)]
 pub const PARALLEL_FACTOR_ENTRIES: usize = 1_000_000;
 
 /// The parallelism of a numeric factorisation with `entries` factor entries: the rayon pool's
-/// threads for a large factor (feature `parallel`), one thread otherwise. The factor's values
-/// do not depend on it (see the module's documentation).
+/// threads for a large factor (feature `parallel-factor`), one thread otherwise. The factor's
+/// values do not depend on it (see the module's documentation).
 fn factor_parallelism(entries: usize) -> Par {
     let large = entries >= PARALLEL_FACTOR_ENTRIES;
-    #[cfg(feature = "parallel")]
+    #[cfg(feature = "parallel-factor")]
     {
         let threads = rayon::current_num_threads();
         if large && threads > 1 {
