@@ -12,6 +12,23 @@ use softway::dim::{Dim, SpatialDim};
 use softway::material::{Hypoelastic, NortonHoff, RotationUpdate};
 use softway::prelude::*;
 
+/// The tests of this file run one at a time. Run side by side in one process (the test
+/// harness's threads), `every_method_and_law_is_thread_independent::<3>` and
+/// `threaded_factorisations_are_thread_independent` each saw 1 and 2 threads differ, also
+/// with every factorisation sequential and faer built without threads (measured when the
+/// second test came in); the 3D case also failed beside the mere build of a simulation in
+/// `the_thread_test_cube_is_factored_with_threads`. Each alone, even beside other processes
+/// loading the machine, is bit-identical. Something shared within a process couples two
+/// simulations that run at the same time: an open defect, apart from what this file tests
+/// (that one simulation does not depend on the thread count).
+static ONE_AT_A_TIME: std::sync::Mutex<()> = std::sync::Mutex::new(());
+
+fn one_at_a_time() -> std::sync::MutexGuard<'static, ()> {
+    ONE_AT_A_TIME
+        .lock()
+        .unwrap_or_else(std::sync::PoisonError::into_inner)
+}
+
 /// Two blocks sliding sideways on a floor and over each other (a moving block over a
 /// resting one): contact with obstacles and between bodies, friction slipping and sticking.
 fn scene<const D: usize>(
@@ -107,6 +124,7 @@ fn every_method_and_law_is_thread_independent<const D: usize>()
 where
     Dim<D>: SpatialDim<D>,
 {
+    let _alone = one_at_a_time();
     let rubber = Material::LinearElastic(LinearElastic::new(1e7, 0.3, 1000.0).unwrap());
     let laws = [
         FrictionLaw::Frictionless,
@@ -179,3 +197,103 @@ where
 }
 
 both_dims!(every_method_and_law_is_thread_independent);
+
+/// A Hex8 cube dropped on a floor with the soft way, its contact-free and contact matrices
+/// large enough (2.4 million factor entries) that the factorisations run on the rayon pool's
+/// threads (feature `parallel-factor`): the same bits on 1, 2 and 4 threads.
+#[test]
+fn threaded_factorisations_are_thread_independent() {
+    use nalgebra::Vector3;
+    let _alone = one_at_a_time();
+    let cells = 12;
+    let run = |threads: usize| {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap()
+            .install(|| {
+                let mut mesh: Mesh<3> = block([1.0; 3], [cells; 3], false);
+                for p in &mut mesh.nodes {
+                    p[2] += 5e-4;
+                }
+                let mut sim = Simulation3::builder()
+                    .time_step(1e-3)
+                    .gravity(Vector3::new(0.0, 0.0, -9.81))
+                    .body(
+                        Body::new(
+                            "cube",
+                            mesh,
+                            Material::LinearElastic(LinearElastic::new(1e7, 0.3, 1000.0).unwrap()),
+                        )
+                        .with_velocity(Vector3::new(0.1, 0.0, -1.0)),
+                    )
+                    .obstacle(Obstacle::new(
+                        "floor",
+                        ObstacleShape::Halfspace {
+                            point: Vector3::zeros(),
+                            normal: Vector3::z(),
+                        },
+                    ))
+                    .contact(ContactSettings {
+                        method: ContactMethod::SoftWay,
+                        penalty: 1e10,
+                        ..Default::default()
+                    })
+                    .build()
+                    .unwrap();
+                let mut in_contact = 0;
+                for _ in 0..6 {
+                    in_contact += usize::from(sim.step().unwrap().active_contacts > 0);
+                }
+                (sim.state().clone(), in_contact)
+            })
+    };
+    let (one, in_contact) = run(1);
+    // Contact steps, and contact matrices factored (with the contact-free one).
+    assert!(in_contact >= 4, "{in_contact} steps in contact");
+    assert!(one.contact_memory.next_factor > 0);
+    for threads in [2, 4] {
+        let (other, _) = run(threads);
+        assert!(same_bits(&one, &other), "1 and {threads} threads differ");
+    }
+}
+
+/// The scene above takes the threaded factorisation: its factor is above the threshold.
+#[cfg(all(feature = "internals", feature = "parallel-factor"))]
+#[test]
+fn the_thread_test_cube_is_factored_with_threads() {
+    use nalgebra::Vector3;
+    let _alone = one_at_a_time();
+    let sim = Simulation3::builder()
+        .time_step(1e-3)
+        .body(Body::new(
+            "cube",
+            block([1.0; 3], [12; 3], false),
+            Material::LinearElastic(LinearElastic::new(1e7, 0.3, 1000.0).unwrap()),
+        ))
+        .obstacle(Obstacle::new(
+            "floor",
+            ObstacleShape::Halfspace {
+                point: Vector3::zeros(),
+                normal: Vector3::z(),
+            },
+        ))
+        .build()
+        .unwrap();
+    let m = sim.mass_matrix();
+    let pattern = faer::sparse::SymbolicSparseColMat::new_checked(
+        m.size(),
+        m.size(),
+        m.column_starts().to_vec(),
+        None,
+        m.row_indices().to_vec(),
+    );
+    let a = faer::sparse::SparseColMat::new(pattern, m.values().to_vec());
+    let chol = softway::solver::SparseCholesky::analyse_with(&a, FillOrdering::NestedDissection, 3)
+        .unwrap();
+    assert!(
+        chol.factor_entries() >= softway::solver::PARALLEL_FACTOR_ENTRIES,
+        "{} factor entries",
+        chol.factor_entries()
+    );
+}

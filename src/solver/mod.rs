@@ -1,5 +1,16 @@
 //! Sparse linear solves: faer's supernodal Cholesky with the symbolic analysis (fill-reducing
 //! ordering, elimination tree, supernodes) done once per sparsity pattern.
+//!
+//! Threads (feature `parallel-factor`, off by default): the numeric factorisation of a large
+//! factor runs its dense kernels on the rayon pool's threads (`factor_parallelism`). Its
+//! values have the same bits for any number of threads: faer visits the supernodes in one
+//! fixed order, its dense Cholesky blocks by fixed sizes, and its matrix products share out
+//! tiles of the output, each summed over the whole depth by one thread (measured:
+//! `examples/thread_report.rs`, identical factors on 1, 2, 4 and 8 threads). It is off by
+//! default because on the project's 2-core machine, shared with other work, two threads took
+//! 1.1 to 2x the time of one at 2.4, 18 and 70 million factor entries. The triangular solves
+//! stay sequential: faer's threaded solve splits the depth of a matrix-vector product among the
+//! threads and adds their partial sums, so its result changes with the thread count.
 
 mod ordering;
 
@@ -17,6 +28,29 @@ use faer::sparse::SparseColMat;
 use faer::{Conj, Par, Side};
 
 use crate::error::{Error, Result};
+
+/// Factors with at least this many entries are computed with threads (feature
+/// `parallel-factor`); smaller ones sequentially. A round figure, not a measured break-even:
+/// on the project's shared 2-core machine two threads were slower at every size measured,
+/// from 2.4 million entries (1.1x the time of one thread) up.
+#[doc(hidden)]
+pub const PARALLEL_FACTOR_ENTRIES: usize = 1_000_000;
+
+/// The parallelism of a numeric factorisation with `entries` factor entries: the rayon pool's
+/// threads for a large factor (feature `parallel-factor`), one thread otherwise. The factor's
+/// values do not depend on it (see the module's documentation).
+fn factor_parallelism(entries: usize) -> Par {
+    let large = entries >= PARALLEL_FACTOR_ENTRIES;
+    #[cfg(feature = "parallel-factor")]
+    {
+        let threads = rayon::current_num_threads();
+        if large && threads > 1 {
+            return Par::rayon(threads);
+        }
+    }
+    let _ = large;
+    Par::Seq
+}
 
 /// The numeric factor in the precision it was computed in.
 enum Values {
@@ -199,7 +233,7 @@ impl SparseCholesky {
     ) -> Result<Vec<T>> {
         let failure = |message: String| Error::Factorization { step, message };
         values.resize(self.symbolic.len_val(), T::default());
-        let par = Par::Seq;
+        let par = factor_parallelism(self.symbolic.len_val());
         let mut scratch = MemBuffer::try_new(
             self.symbolic
                 .factorize_numeric_llt_scratch::<T>(par, Default::default()),
@@ -238,6 +272,8 @@ impl SparseCholesky {
         if rhs.is_empty() {
             return;
         }
+        // Sequential: faer's threaded solve sums partial products per thread (see the module's
+        // documentation), which would make the result depend on the thread count.
         let par = Par::Seq;
         // A poisoned lock only means another solve panicked; the buffer is plain scratch.
         let mut scratch = self
