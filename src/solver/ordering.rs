@@ -6,6 +6,9 @@
 
 use serde::{Deserialize, Serialize};
 
+/// Serialises the calls into METIS (its random generator is a process-wide static).
+static METIS_LOCK: std::sync::Mutex<()> = std::sync::Mutex::new(());
+
 /// Which fill-reducing ordering the sparse Cholesky factorisation uses.
 ///
 /// Nested dissection (METIS) produces a factor with far less fill on 3D meshes: on a Hex8 cube
@@ -75,10 +78,18 @@ pub(crate) fn nested_dissection(
     let mut nvtxs = vertices as i32;
     let mut perm = vec![0i32; vertices];
     let mut iperm = vec![0i32; vertices];
+    // METIS draws from GKlib's random generator, whose state is a process-wide static
+    // (`GKlib/random.c`): two orderings computed at once in one process (two simulations on
+    // two threads) interleave their draws, a data race that also made their orderings, hence
+    // their round-off, depend on each other. One METIS call at a time.
+    let _metis = METIS_LOCK
+        .lock()
+        .unwrap_or_else(|poisoned| poisoned.into_inner());
     // SAFETY: METIS_NodeND reads `nvtxs + 1` entries of xadj and `xadj[nvtxs]` of adjncy (both
     // built above with these lengths, a symmetric graph without self loops) and writes `nvtxs`
     // entries into perm and iperm; null vertex weights and options select METIS's defaults
-    // (a fixed random seed: the ordering is deterministic).
+    // (a fixed random seed: the ordering is deterministic); the lock above serialises the
+    // calls, the only shared state being GKlib's generator.
     let status = unsafe {
         metis_sys::METIS_NodeND(
             &mut nvtxs,
