@@ -352,8 +352,9 @@ fn folding_strip() {
 }
 
 #[test]
-#[ignore = "no convergence at t = 0.482 s (step 483), when the upper arm's free end meets the \
-            lower arm: implicit projection on self-contact (the book's contact chapter, Limits)"]
+#[ignore = "runs to the end since implicit projection's tangent holds the turning normal, but \
+            the free end's faces end 1.5e-4 m across each other by this test's node-pair measure \
+            (bound 7e-5 m): not yet told apart from the measure's own error"]
 fn folding_strip_default_method() {
     folding_strip_with(&[]);
 }

@@ -140,7 +140,10 @@ mod d2 {
 mod d3 {
     use softway::contact::ContactMethod;
     #[test]
-    #[ignore = "no convergence when the lift starts (t = 0.2 s), even with 300 iterations"]
+    #[ignore = "no convergence at t = 0.103 s (step 104) as the jaws take hold: Newton backtracks \
+                on the friction return map's stick/slip kink (it runs with a tangential \
+                stiffness of 1 or 10 diagonals per step instead of 100, which makes the 2D \
+                block on a slope hop)"]
     fn implicit_projection() {
         super::the_block_rises_with_the_jaws::<3>(ContactMethod::ImplicitProjection);
     }

@@ -542,7 +542,7 @@ mod open {
     }
 
     #[test]
-    #[ignore = "no convergence at t = 0.531 s (step 532), the fold squeezed as the plate stops"]
+    #[ignore = "no convergence at t = 0.575 s (step 576), the fold squeezed as the plate stops"]
     fn implicit_projection_2d() {
         let f = run::<2>(ContactMethod::ImplicitProjection, true);
         assert_resolved(&f);
@@ -550,7 +550,7 @@ mod open {
     }
 
     #[test]
-    #[ignore = "no convergence at t = 0.412 s (step 413), before the plate stops"]
+    #[ignore = "no convergence at t = 0.537 s (step 538), the fold squeezed as the plate stops"]
     fn implicit_projection_3d() {
         let f = run::<3>(ContactMethod::ImplicitProjection, true);
         assert_resolved(&f);

@@ -316,7 +316,7 @@ where
             if normal_stiffness > 0.0 || law != FrictionLaw::Frictionless {
                 let nn = normal * normal.transpose();
                 let turning =
-                    normal_law.geometric_force > 0.0 || normal_law.velocity_stiffness > 0.0;
+                    normal_law.geometric_force != 0.0 || normal_law.velocity_stiffness > 0.0;
                 let hessian: Option<Vec<Vec<f64>>> = if turning {
                     match pair.master {
                         Master::Facet(f) => {
@@ -352,6 +352,28 @@ where
                             stacked[i] -= master_velocity[i];
                         }
                     }
+                    // A turning obstacle's surface velocity follows the closest point Q:
+                    // n . v_m also varies by (dQ/dx)^T W^T n, W = d v_m / dQ (its spin) and
+                    // dQ/dx = I - n n^T - g Hess(g). (On a ball turning about its centre
+                    // n . v_m stays 0, and this cancels the Hess(g) v_m above.)
+                    let mut spin_term = SVector::<f64, D>::zeros();
+                    if let Some(k) = obstacle {
+                        let posed = &input.obstacles_t1[k];
+                        let at = |q: &SVector<f64, D>| self.surface_velocity(k, posed, q);
+                        let base = at(&master_point);
+                        let wn = SVector::<f64, D>::from_fn(|j, _| {
+                            let mut shifted = master_point;
+                            shifted[j] += 1.0;
+                            normal.dot(&(at(&shifted) - base))
+                        });
+                        if wn != SVector::<f64, D>::zeros() {
+                            let hs = SMatrix::<f64, D, D>::from_fn(|i, j| hess[i][j]);
+                            let closest = SMatrix::<f64, D, D>::identity()
+                                - normal * normal.transpose()
+                                - hs * gap;
+                            spin_term = closest.transpose() * wn;
+                        }
+                    }
                     let factor = 0.5 * h * normal_law.velocity_stiffness;
                     let row: Vec<(usize, f64)> = nodes
                         .iter()
@@ -360,7 +382,8 @@ where
                         .map(|(a, n, i)| {
                             let q: f64 = (0..stacked.len())
                                 .map(|j| hess[a * D + i][j] * stacked[j])
-                                .sum();
+                                .sum::<f64>()
+                                - if a == 0 { spin_term[i] } else { 0.0 };
                             (n * D + i, factor * q)
                         })
                         .filter(|&(_, x)| x != 0.0)

@@ -745,6 +745,26 @@ mod tests {
     }
 
     #[test]
+    fn implicit_projection_tangent_on_a_turning_ball_matches_finite_differences() {
+        // The held normal velocity against a curved master that turns: the normal's variation
+        // and the surface velocity following the closest point (which cancel on a ball turning
+        // about its centre, where n . v_m = 0).
+        for omega in [0.0, 20.0] {
+            let ball = Obstacle::new(
+                "drum",
+                ObstacleShape::Ball {
+                    center: Vector2::new(0.05, -0.5),
+                    radius: 0.5,
+                },
+            );
+            let mut sim = block_on(ball, FrictionLaw::Frictionless, 1e-2);
+            sim.model.contact.method = ContactMethod::ImplicitProjection;
+            sim.state.obstacle_angular_velocities = vec![omega];
+            check_at_speed(sim, &BTreeMap::new(), 1e-5, 2.0);
+        }
+    }
+
+    #[test]
     fn coulomb_friction_tangent_matches_finite_differences() {
         let plane = Obstacle::new(
             "p",
