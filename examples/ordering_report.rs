@@ -9,7 +9,6 @@ mod common;
 use common::median;
 use std::time::Instant;
 
-use nalgebra::Vector3;
 use softway::prelude::*;
 use softway::solver::SparseCholesky;
 
@@ -18,35 +17,7 @@ fn main() -> Result<()> {
         .nth(1)
         .and_then(|a| a.parse().ok())
         .unwrap_or(20);
-    let mesh = cuboid(
-        Vector3::zeros(),
-        Vector3::new(1.0, 1.0, 1.0),
-        [n, n, n],
-        ElementKind::Hex8,
-    )?;
-    let rubber = Material::LinearElastic(LinearElastic::new(1e7, 0.3, 1000.0)?);
-    let h = 1e-3;
-    let sim = Simulation3::builder()
-        .time_step(h)
-        .body(Body::new("box", mesh, rubber))
-        .build()?;
-    let alpha = sim.settings().scheme.alpha;
-    // The iteration matrix M/h + (alpha^2 h / 2) K, on the pattern the two share.
-    let (m, k) = (sim.mass_matrix(), sim.stiffness_matrix());
-    let values: Vec<f64> = m
-        .values()
-        .iter()
-        .zip(k.values())
-        .map(|(m, k)| m / h + 0.5 * alpha * alpha * h * k)
-        .collect();
-    let pattern = faer::sparse::SymbolicSparseColMat::new_checked(
-        m.size(),
-        m.size(),
-        m.column_starts().to_vec(),
-        None,
-        m.row_indices().to_vec(),
-    );
-    let a = faer::sparse::SparseColMat::new(pattern, values);
+    let a = common::cube_iteration_matrix(n)?;
     println!("hex8 cube {n}^3 cells, {} unknowns", a.nrows());
     let b: Vec<f64> = (0..a.nrows()).map(|i| (i as f64 * 0.1).sin()).collect();
     let median_solve = |chol: &SparseCholesky| {

@@ -22,7 +22,6 @@ use faer::sparse::linalg::cholesky::{
 };
 use faer::sparse::{SparseColMat, SparseColMatRef};
 use faer::{Conj, Par, Side};
-use nalgebra::Vector3;
 use softway::prelude::*;
 use softway::solver::SparseCholesky;
 
@@ -87,34 +86,7 @@ fn main() -> Result<()> {
         .nth(1)
         .and_then(|a| a.parse().ok())
         .unwrap_or(20);
-    let mesh = cuboid(
-        Vector3::zeros(),
-        Vector3::new(1.0, 1.0, 1.0),
-        [n, n, n],
-        ElementKind::Hex8,
-    )?;
-    let rubber = Material::LinearElastic(LinearElastic::new(1e7, 0.3, 1000.0)?);
-    let h = 1e-3;
-    let sim = Simulation3::builder()
-        .time_step(h)
-        .body(Body::new("box", mesh, rubber))
-        .build()?;
-    let alpha = sim.settings().scheme.alpha;
-    let (m, k) = (sim.mass_matrix(), sim.stiffness_matrix());
-    let values: Vec<f64> = m
-        .values()
-        .iter()
-        .zip(k.values())
-        .map(|(m, k)| m / h + 0.5 * alpha * alpha * h * k)
-        .collect();
-    let pattern = faer::sparse::SymbolicSparseColMat::new_checked(
-        m.size(),
-        m.size(),
-        m.column_starts().to_vec(),
-        None,
-        m.row_indices().to_vec(),
-    );
-    let a = SparseColMat::new(pattern, values);
+    let a = common::cube_iteration_matrix(n)?;
     let single: Vec<f32> = a.val().iter().map(|&v| v as f32).collect();
     let a32 = SparseColMatRef::new(a.symbolic(), &single);
     let b: Vec<f64> = (0..a.nrows()).map(|i| (i as f64 * 0.1).sin()).collect();

@@ -17,3 +17,38 @@ pub fn median(mut v: Vec<f64>) -> f64 {
 pub fn mean(v: &[f64]) -> f64 {
     v.iter().sum::<f64>() / v.len() as f64
 }
+
+/// A Hex8 unit cube of `n`^3 cells of rubber (E = 1e7 Pa, nu = 0.3, rho = 1000 kg/m^3) and its
+/// iteration matrix `M/h + (alpha^2 h/2) K` at h = 1 ms, on the lower-triangle pattern M and K
+/// share (the matrix the ordering and thread reports factor).
+pub fn cube_iteration_matrix(n: usize) -> softway::Result<faer::sparse::SparseColMat<usize, f64>> {
+    use softway::prelude::*;
+    let mesh = cuboid(
+        nalgebra::Vector3::zeros(),
+        nalgebra::Vector3::new(1.0, 1.0, 1.0),
+        [n, n, n],
+        ElementKind::Hex8,
+    )?;
+    let rubber = Material::LinearElastic(LinearElastic::new(1e7, 0.3, 1000.0)?);
+    let h = 1e-3;
+    let sim = Simulation3::builder()
+        .time_step(h)
+        .body(Body::new("box", mesh, rubber))
+        .build()?;
+    let alpha = sim.settings().scheme.alpha;
+    let (m, k) = (sim.mass_matrix(), sim.stiffness_matrix());
+    let values: Vec<f64> = m
+        .values()
+        .iter()
+        .zip(k.values())
+        .map(|(m, k)| m / h + 0.5 * alpha * alpha * h * k)
+        .collect();
+    let pattern = faer::sparse::SymbolicSparseColMat::new_checked(
+        m.size(),
+        m.size(),
+        m.column_starts().to_vec(),
+        None,
+        m.row_indices().to_vec(),
+    );
+    Ok(faer::sparse::SparseColMat::new(pattern, values))
+}

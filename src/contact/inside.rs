@@ -432,11 +432,24 @@ where
         x: &[SVector<f64, D>],
         hits: &mut Vec<usize>,
     ) -> bool {
+        self.held_by(p, body, None, cells, x, hits)
+    }
+
+    /// Whether a cell of body `body` other than those of node `apart` holds `p`.
+    fn held_by(
+        &self,
+        p: &SVector<f64, D>,
+        body: usize,
+        apart: Option<usize>,
+        cells: &[(usize, ElementKind, Vec<usize>)],
+        x: &[SVector<f64, D>],
+        hits: &mut Vec<usize>,
+    ) -> bool {
         hits.clear();
         self.tree.query(&Aabb { min: *p, max: *p }, hits);
         hits.iter().any(|&c| {
             let (b, kind, nodes) = &cells[c];
-            if *b != body {
+            if *b != body || apart.is_some_and(|n| nodes.contains(&n)) {
                 return false;
             }
             let corners: Vec<SVector<f64, D>> = nodes.iter().map(|&n| x[n]).collect();
@@ -461,16 +474,7 @@ where
         x: &[SVector<f64, D>],
         hits: &mut Vec<usize>,
     ) -> bool {
-        hits.clear();
-        self.tree.query(&Aabb { min: *p, max: *p }, hits);
-        hits.iter().any(|&c| {
-            let (b, kind, nodes) = &cells[c];
-            if *b != body || nodes.contains(&node) {
-                return false;
-            }
-            let corners: Vec<SVector<f64, D>> = nodes.iter().map(|&n| x[n]).collect();
-            in_cell(*kind, &corners, p)
-        })
+        self.held_by(p, body, Some(node), cells, x, hits)
     }
 }
 
