@@ -550,7 +550,7 @@ mod open {
     }
 
     #[test]
-    #[ignore = "no convergence at t = 0.537 s (step 538), the fold squeezed as the plate stops"]
+    #[ignore = "no convergence at t = 0.536 s (step 537), the fold squeezed as the plate stops"]
     fn implicit_projection_3d() {
         let f = run::<3>(ContactMethod::ImplicitProjection, true);
         assert_resolved(&f);
