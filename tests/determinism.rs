@@ -73,17 +73,13 @@ fn run<const D: usize>(
 where
     Dim<D>: SpatialDim<D>,
 {
-    rayon::ThreadPoolBuilder::new()
-        .num_threads(threads)
-        .build()
-        .unwrap()
-        .install(|| {
-            let mut sim = scene::<D>(method, friction, law);
-            for _ in 0..25 {
-                sim.step().map_err(|e| e.to_string())?;
-            }
-            Ok(sim.state().clone())
-        })
+    common::on_threads(threads, || {
+        let mut sim = scene::<D>(method, friction, law);
+        for _ in 0..25 {
+            sim.step().map_err(|e| e.to_string())?;
+        }
+        Ok(sim.state().clone())
+    })
 }
 
 fn same_outcome(a: &Result<State, String>, b: &Result<State, String>) -> bool {
@@ -217,46 +213,42 @@ fn threaded_factorisations_are_thread_independent() {
     use nalgebra::Vector3;
     let cells = 12;
     let run = |threads: usize| {
-        rayon::ThreadPoolBuilder::new()
-            .num_threads(threads)
-            .build()
-            .unwrap()
-            .install(|| {
-                let mut mesh: Mesh<3> = block([1.0; 3], [cells; 3], false);
-                for p in &mut mesh.nodes {
-                    p[2] += 5e-4;
-                }
-                let mut sim = Simulation3::builder()
-                    .time_step(1e-3)
-                    .gravity(Vector3::new(0.0, 0.0, -9.81))
-                    .body(
-                        Body::new(
-                            "cube",
-                            mesh,
-                            Material::LinearElastic(LinearElastic::new(1e7, 0.3, 1000.0).unwrap()),
-                        )
-                        .with_velocity(Vector3::new(0.1, 0.0, -1.0)),
+        common::on_threads(threads, || {
+            let mut mesh: Mesh<3> = block([1.0; 3], [cells; 3], false);
+            for p in &mut mesh.nodes {
+                p[2] += 5e-4;
+            }
+            let mut sim = Simulation3::builder()
+                .time_step(1e-3)
+                .gravity(Vector3::new(0.0, 0.0, -9.81))
+                .body(
+                    Body::new(
+                        "cube",
+                        mesh,
+                        Material::LinearElastic(LinearElastic::new(1e7, 0.3, 1000.0).unwrap()),
                     )
-                    .obstacle(Obstacle::new(
-                        "floor",
-                        ObstacleShape::Halfspace {
-                            point: Vector3::zeros(),
-                            normal: Vector3::z(),
-                        },
-                    ))
-                    .contact(ContactSettings {
-                        method: ContactMethod::SoftWay,
-                        penalty: 1e10,
-                        ..Default::default()
-                    })
-                    .build()
-                    .unwrap();
-                let mut in_contact = 0;
-                for _ in 0..6 {
-                    in_contact += usize::from(sim.step().unwrap().active_contacts > 0);
-                }
-                (sim.state().clone(), in_contact)
-            })
+                    .with_velocity(Vector3::new(0.1, 0.0, -1.0)),
+                )
+                .obstacle(Obstacle::new(
+                    "floor",
+                    ObstacleShape::Halfspace {
+                        point: Vector3::zeros(),
+                        normal: Vector3::z(),
+                    },
+                ))
+                .contact(ContactSettings {
+                    method: ContactMethod::SoftWay,
+                    penalty: 1e10,
+                    ..Default::default()
+                })
+                .build()
+                .unwrap();
+            let mut in_contact = 0;
+            for _ in 0..6 {
+                in_contact += usize::from(sim.step().unwrap().active_contacts > 0);
+            }
+            (sim.state().clone(), in_contact)
+        })
     };
     let (one, in_contact) = run(1);
     // Contact steps, and contact matrices factored (with the contact-free one).

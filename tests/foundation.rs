@@ -491,17 +491,13 @@ fn assembly_is_identical_with_one_and_two_threads() {
             .unwrap()
     };
     let run = |threads: usize| {
-        rayon::ThreadPoolBuilder::new()
-            .num_threads(threads)
-            .build()
-            .unwrap()
-            .install(|| {
-                let s = build();
-                (
-                    s.stiffness_matrix().values().to_vec(),
-                    s.mass_matrix().values().to_vec(),
-                )
-            })
+        common::on_threads(threads, || {
+            let s = build();
+            (
+                s.stiffness_matrix().values().to_vec(),
+                s.mass_matrix().values().to_vec(),
+            )
+        })
     };
     let (k1, m1) = run(1);
     let (k2, m2) = run(2);

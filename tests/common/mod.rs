@@ -108,3 +108,12 @@ where
         .and_then(|s| s.build::<D>())
         .unwrap_or_else(|e| panic!("{name}: {e}"))
 }
+
+/// `f` run inside a rayon pool of `threads` threads (what the thread-independence tests compare).
+pub fn on_threads<T: Send>(threads: usize, f: impl FnOnce() -> T + Send) -> T {
+    rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build()
+        .unwrap()
+        .install(f)
+}
