@@ -1,0 +1,489 @@
+//! Tests of the step: the contact tangent against central differences of the contact forces
+//! (penalty and implicit projection, obstacles and bodies, friction), single-precision contact
+//! factorisations against double, the general path against the linear one, material history
+//! as state.
+
+use super::*;
+use crate::contact::methods::OuterVariables;
+use crate::contact::{
+    ContactMethod, ContactSettings, FrictionLaw, MasterId, Obstacle, ObstacleShape,
+};
+use crate::material::{LinearElastic, Material};
+use crate::mesh::generators::rectangle;
+use crate::simulation::contact_terms::TermsInput;
+use crate::simulation::{Body, Simulation2};
+use nalgebra::Vector2;
+use std::collections::BTreeMap;
+
+/// The contact forces and the assembled tangent at end velocities `v1`.
+fn forces_and_tangent(
+    sim: &mut Simulation2,
+    v1: &[f64],
+    h: f64,
+    friction_normals: &BTreeMap<(usize, MasterId), f64>,
+    anchors: &BTreeMap<(usize, MasterId), Vector2<f64>>,
+) -> (Vec<f64>, nalgebra::DMatrix<f64>, [usize; 2]) {
+    sim.ensure_system(h).unwrap();
+    let n = v1.len();
+    let u0 = sim.state.displacement.clone();
+    let v0 = sim.state.velocity.clone();
+    let x0 = end_positions(&sim.reference, &u0, &v0, &vec![0.0; n], 0.0);
+    let x_gap = end_positions(&sim.reference, &u0, &v0, v1, h);
+    let obstacles = sim.model.obstacles.clone();
+    let t1: Vec<Vector2<f64>> = obstacles.iter().map(|o| o.translation).collect();
+    let areas = sim.tributary_areas(&x0);
+    let det = sim.caches.detector.as_mut().unwrap();
+    det.update_candidates(&x0, &x_gap, &obstacles, &t1);
+    let pairs = det.pairs(&x_gap, &obstacles);
+    let diagonal = vec![1.0; n];
+    // Implicit projection: every detected point active (its multipliers zero).
+    let mut vars = OuterVariables::default();
+    if sim.model.contact.method == ContactMethod::ImplicitProjection {
+        vars.active = pairs.iter().map(|p| sim.contact_key(p)).collect();
+    }
+    let terms = sim.contact_terms(
+        &pairs,
+        &TermsInput {
+            method: methods::method(sim.model.contact.method),
+            obstacles_t1: &obstacles,
+            x_gap: &x_gap,
+            v0: &v0,
+            v1,
+            time_step: h,
+            areas: &areas,
+            vars: &vars,
+            friction_normals,
+            friction_anchors: anchors,
+            diagonal: &diagonal,
+        },
+    );
+    let mut k = nalgebra::DMatrix::zeros(n, n);
+    for &(r, c, v) in terms.entries.iter().chain(&terms.geometric) {
+        k[(r, c)] += v;
+        if r != c {
+            k[(c, r)] += v;
+        }
+    }
+    for (u, w) in &terms.coupling {
+        for &(r, a) in u {
+            for &(c, b) in w {
+                k[(r, c)] += a * b;
+            }
+        }
+    }
+    // Closed contacts, and those at the slip limit.
+    let closed = terms.pairs.iter().filter(|p| p.normal_force > 0.0);
+    let slipping = closed
+        .clone()
+        .filter(|p| p.friction.norm() >= (1.0 - 1e-9) * 0.4 * p.normal_force)
+        .count();
+    (terms.forces, k, [closed.count(), slipping])
+}
+
+/// The assembled contact tangent against central differences of the contact forces;
+/// `anchors` are the elastic slips of the friction return map at the start of the step.
+fn check(
+    sim: Simulation2,
+    anchors: &BTreeMap<(usize, MasterId), Vector2<f64>>,
+    tolerance: f64,
+) -> [usize; 2] {
+    check_at_speed(sim, anchors, tolerance, 0.01)
+}
+
+/// [`check`] with end velocities of about `speed` (m/s).
+fn check_at_speed(
+    mut sim: Simulation2,
+    anchors: &BTreeMap<(usize, MasterId), Vector2<f64>>,
+    tolerance: f64,
+    speed: f64,
+) -> [usize; 2] {
+    let h = 1e-3;
+    let n = sim.state.velocity.len();
+    // A velocity field that keeps every contact strictly open or strictly closed.
+    let v1: Vec<f64> = (0..n).map(|i| speed * ((i as f64) * 0.7).sin()).collect();
+    let normals = BTreeMap::new();
+    let (_, k, counts) = forces_and_tangent(&mut sim, &v1, h, &normals, anchors);
+    assert!(k.amax() > 0.0, "no contact in the test configuration");
+    let eps = 1e-7;
+    let mut worst: f64 = 0.0;
+    for j in 0..n {
+        let (mut vp, mut vm) = (v1.clone(), v1.clone());
+        vp[j] += eps;
+        vm[j] -= eps;
+        let (fp, _, _) = forces_and_tangent(&mut sim, &vp, h, &normals, anchors);
+        let (fm, _, _) = forces_and_tangent(&mut sim, &vm, h, &normals, anchors);
+        for i in 0..n {
+            // The tangent is d(-f)/dv1.
+            let fd = -(fp[i] - fm[i]) / (2.0 * eps);
+            worst = worst.max((fd - k[(i, j)]).abs());
+        }
+    }
+    assert!(
+        worst <= tolerance * k.amax(),
+        "tangent error {worst:e} of {:e}",
+        k.amax()
+    );
+    counts
+}
+
+fn block_on(obstacle: Obstacle<2>, friction: FrictionLaw, penetration: f64) -> Simulation2 {
+    let mesh = rectangle(
+        Vector2::new(-0.5, 0.0),
+        Vector2::new(0.5, 0.2),
+        [4, 2],
+        crate::element::ElementKind::Quad4,
+    )
+    .unwrap();
+    let mut sim = Simulation2::builder()
+        .body(Body::new(
+            "b",
+            mesh,
+            Material::LinearElastic(LinearElastic::new(1e6, 0.3, 1000.0).unwrap()),
+        ))
+        .obstacle(obstacle)
+        .contact(ContactSettings {
+            method: ContactMethod::SoftWay,
+            penalty: 1e8,
+            friction,
+            ..ContactSettings::default()
+        })
+        .build()
+        .unwrap();
+    // Push the body into the obstacle.
+    for i in 0..sim.node_count() {
+        sim.state.displacement[2 * i + 1] = -penetration;
+    }
+    sim
+}
+
+#[test]
+fn soft_way_tangent_against_a_halfspace_matches_finite_differences() {
+    let plane = Obstacle::new(
+        "p",
+        ObstacleShape::Halfspace {
+            point: Vector2::zeros(),
+            normal: Vector2::new(0.1, 1.0),
+        },
+    );
+    check(
+        block_on(plane, FrictionLaw::Frictionless, 1e-3),
+        &BTreeMap::new(),
+        1e-6,
+    );
+}
+
+#[test]
+fn soft_way_tangent_against_a_ball_matches_finite_differences() {
+    // The curvature term zeta (-g) (I - n n) / R matters here.
+    let ball = Obstacle::new(
+        "ball",
+        ObstacleShape::Ball {
+            center: Vector2::new(0.05, -0.5),
+            radius: 0.5,
+        },
+    );
+    // The curvature term is about 1.5 % of the tangent here (|g| / R); what remains is the
+    // variation of the projected contact area with the normal, not in the tangent.
+    check(
+        block_on(ball, FrictionLaw::Frictionless, 1e-2),
+        &BTreeMap::new(),
+        3e-3,
+    );
+}
+
+#[test]
+fn implicit_projection_tangent_on_a_turning_ball_matches_finite_differences() {
+    // The held normal velocity against a curved master that turns: the normal's variation
+    // and the surface velocity following the closest point (which cancel on a ball turning
+    // about its centre, where n . v_m = 0).
+    for omega in [0.0, 20.0] {
+        let ball = Obstacle::new(
+            "drum",
+            ObstacleShape::Ball {
+                center: Vector2::new(0.05, -0.5),
+                radius: 0.5,
+            },
+        );
+        let mut sim = block_on(ball, FrictionLaw::Frictionless, 1e-2);
+        sim.model.contact.method = ContactMethod::ImplicitProjection;
+        sim.state.obstacle_angular_velocities = vec![omega];
+        check_at_speed(sim, &BTreeMap::new(), 1e-5, 2.0);
+    }
+}
+
+#[test]
+fn coulomb_friction_tangent_matches_finite_differences() {
+    let plane = Obstacle::new(
+        "p",
+        ObstacleShape::Halfspace {
+            point: Vector2::zeros(),
+            normal: Vector2::new(0.0, 1.0),
+        },
+    );
+    let law = FrictionLaw::Coulomb {
+        coefficient: 0.4,
+        regularization: 1e-3,
+    };
+    // The return map on a block pressed 1 mm into a plane: every contact sticks without an
+    // elastic slip at the start (increments h w_t of ~1e-5 m against mu times the 1 mm
+    // penetration), and slips with one of 2 mm, either way.
+    for (elastic_slip, slips) in [(0.0, false), (2e-3, true), (-2e-3, true)] {
+        let sim = block_on(plane.clone(), law, 1e-3);
+        let mut anchors = BTreeMap::new();
+        for s in 0..sim.node_count() {
+            anchors.insert((s, MasterId::Obstacle(0)), Vector2::new(elastic_slip, 0.0));
+        }
+        let [closed, slipping] = check(sim, &anchors, 1e-6);
+        assert_eq!(closed, 5, "closed contacts");
+        assert_eq!(
+            slipping,
+            if slips { closed } else { 0 },
+            "elastic slip {elastic_slip}"
+        );
+    }
+}
+
+#[test]
+fn coulomb_friction_tangent_on_a_turning_plane_matches_finite_differences() {
+    let plane = Obstacle {
+        rotation: nalgebra::Rotation2::new(0.05).into_inner(),
+        ..Obstacle::new(
+            "p",
+            ObstacleShape::Halfspace {
+                point: Vector2::new(0.3, 0.0),
+                normal: Vector2::new(0.0, 1.0),
+            },
+        )
+    };
+    let law = FrictionLaw::Coulomb {
+        coefficient: 0.4,
+        regularization: 1e-3,
+    };
+    for (elastic_slip, omega) in [(0.0, 0.0), (0.0, 2.0), (2e-3, 2.0)] {
+        let mut sim = block_on(plane.clone(), law, 1e-3);
+        sim.state.obstacle_angular_velocities = vec![omega];
+        let mut anchors = BTreeMap::new();
+        for s in 0..sim.node_count() {
+            anchors.insert((s, MasterId::Obstacle(0)), Vector2::new(elastic_slip, 0.0));
+        }
+        eprintln!("omega {omega} slip {elastic_slip}");
+        check(sim, &anchors, 1e-6);
+    }
+}
+
+/// An upper block pressed 1 mm into a lower one, 1 cm off centre, under `method`.
+fn two_blocks(method: ContactMethod) -> Simulation2 {
+    let lower = rectangle(
+        Vector2::new(-0.5, -0.2),
+        Vector2::new(0.5, 0.0),
+        [3, 1],
+        crate::element::ElementKind::Quad4,
+    )
+    .unwrap();
+    let mut upper = rectangle(
+        Vector2::new(-0.3, 0.0),
+        Vector2::new(0.3, 0.2),
+        [2, 1],
+        crate::element::ElementKind::Quad4,
+    )
+    .unwrap();
+    upper.translate(&Vector2::new(0.01, -1e-3));
+    let mat = Material::LinearElastic(LinearElastic::new(1e6, 0.3, 1000.0).unwrap());
+    Simulation2::builder()
+        .body(Body::new("upper", upper, mat))
+        .body(Body::new("lower", lower, mat))
+        .contact(ContactSettings {
+            method,
+            penalty: 1e8,
+            ..ContactSettings::default()
+        })
+        .build()
+        .unwrap()
+}
+
+#[test]
+fn soft_way_tangent_between_two_bodies_matches_finite_differences() {
+    // The facet terms (normal and closest-point variations) of a deformable master. The
+    // projected contact area follows the master's normal; that variation is not in the
+    // tangent (a relative error of ~6e-4 here), everything else is.
+    check(two_blocks(ContactMethod::SoftWay), &BTreeMap::new(), 1e-3);
+}
+
+#[test]
+fn implicit_projection_tangent_between_two_bodies_matches_finite_differences() {
+    // A held normal velocity on a facet master that turns and slides under the slave:
+    // the normal's and the closest point's variation (a non-symmetric rank-one term per
+    // pair) and the constraint force's geometric term are in the tangent. At 2 m/s of
+    // sliding the turning normal's term is about 3e-3 of the tangent.
+    let sim = two_blocks(ContactMethod::ImplicitProjection);
+    check_at_speed(sim, &BTreeMap::new(), 2e-5, 2.0);
+}
+
+/// A block dropped at 1 m/s onto a plane 0.1 mm under it, `steps` steps of 1 ms; the
+/// velocities at the end.
+fn dropped_block(penalty: f64, single_precision: bool, steps: usize) -> (Simulation2, Vec<f64>) {
+    let mesh = rectangle(
+        Vector2::new(-0.5, 1e-4),
+        Vector2::new(0.5, 0.2001),
+        // 25 bottom nodes: more than CG takes on without a contact factorisation.
+        [24, 4],
+        crate::element::ElementKind::Quad4,
+    )
+    .unwrap();
+    let plane = Obstacle::new(
+        "ground",
+        ObstacleShape::Halfspace {
+            point: Vector2::zeros(),
+            normal: Vector2::new(0.0, 1.0),
+        },
+    );
+    let mut sim = Simulation2::builder()
+        .gravity(Vector2::new(0.0, -9.81))
+        .body(
+            Body::new(
+                "b",
+                mesh,
+                Material::LinearElastic(LinearElastic::new(1e6, 0.3, 1000.0).unwrap()),
+            )
+            .with_velocity(Vector2::new(0.0, -1.0)),
+        )
+        .obstacle(plane)
+        .contact(ContactSettings {
+            method: ContactMethod::SoftWay,
+            penalty,
+            ..ContactSettings::default()
+        })
+        .build()
+        .unwrap();
+    sim.state.contact_memory.double_precision_only = !single_precision;
+    for _ in 0..steps {
+        sim.step().unwrap();
+    }
+    let v = sim.state.velocity.clone();
+    (sim, v)
+}
+
+#[test]
+fn single_precision_contact_factors_give_the_double_precision_answer() {
+    let (single, v_single) = dropped_block(1e8, true, 4);
+    assert!(
+        !single.state.contact_memory.double_precision_only,
+        "refinement converged"
+    );
+    assert!(single
+        .caches
+        .contact_factors
+        .iter()
+        .all(|f| f.is_single_precision()));
+    let (double, v_double) = dropped_block(1e8, false, 4);
+    assert!(double
+        .caches
+        .contact_factors
+        .iter()
+        .all(|f| !f.is_single_precision()));
+    assert!(
+        !single.caches.contact_factors.is_empty(),
+        "a contact matrix was factored"
+    );
+    let scale = v_double.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    let diff = v_single
+        .iter()
+        .zip(&v_double)
+        .fold(0.0f64, |m, (a, b)| m.max((a - b).abs()));
+    // Both are Newton solutions to the same tolerance (1e-8 of the force scale).
+    assert!(diff < 1e-6 * scale, "{diff} vs {scale}");
+}
+
+/// The general path (internal forces and tangent from the element kernel every Newton
+/// iteration, the path of laws that are not linear) gives the linear fast path's answer.
+#[test]
+fn the_general_path_matches_the_linear_fast_path() {
+    for method in [ContactMethod::SoftWay, ContactMethod::ImplicitProjection] {
+        let run = |general: bool| {
+            let (mut sim, _) = dropped_block(1e8, true, 0);
+            sim.model.contact.method = method;
+            sim.general_path = general;
+            let mut reports = Vec::new();
+            for _ in 0..8 {
+                reports.push(sim.step().unwrap());
+            }
+            (
+                sim.state.velocity.clone(),
+                sim.state.displacement.clone(),
+                reports,
+            )
+        };
+        let (v_fast, u_fast, r_fast) = run(false);
+        let (v_general, u_general, r_general) = run(true);
+        assert!(
+            r_fast.iter().any(|r| r.active_contacts > 0),
+            "{method:?}: no contact"
+        );
+        let scale = v_fast.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+        let dv = v_fast
+            .iter()
+            .zip(&v_general)
+            .fold(0.0f64, |m, (a, b)| m.max((a - b).abs()));
+        let du = u_fast
+            .iter()
+            .zip(&u_general)
+            .fold(0.0f64, |m, (a, b)| m.max((a - b).abs()));
+        // Both are Newton solutions to the same tolerance (1e-8 of the force scale).
+        assert!(
+            dv < 1e-6 * scale,
+            "{method:?}: velocities differ by {dv:e} of {scale:e}"
+        );
+        assert!(
+            du < 1e-6 * scale * 1e-3 * 8.0,
+            "{method:?}: displacements differ by {du:e}"
+        );
+        for (a, b) in r_fast.iter().zip(&r_general) {
+            let e = a.energies.total().abs().max(1e-12);
+            assert!(
+                (a.energies.total() - b.energies.total()).abs() < 1e-6 * e,
+                "{method:?}: energies {:?} vs {:?}",
+                a.energies,
+                b.energies
+            );
+        }
+    }
+}
+
+/// A law with history through the general path: the state carries the history from step
+/// to step, and a failed step restores it.
+#[test]
+fn material_history_is_state() {
+    use crate::material::tests::TestLaw;
+    let (mut sim, _) = dropped_block(1e8, true, 0);
+    let elastic = crate::material::LinearElastic::new(1e6, 0.3, 1000.0).unwrap();
+    sim.integration[0].law = std::sync::Arc::new(TestLaw {
+        elastic,
+        cubic: 1e8,
+        eta: 1e3,
+        exponent: 0.5,
+    });
+    sim.general_path = true;
+    sim.state.material_history = vec![0.0; assembly::history_len(&sim.table, &sim.integration)];
+    assert_eq!(
+        sim.state.material_history.len(),
+        24 * 4 * 4,
+        "4 points per Quad4"
+    );
+    let mut previous = 0.0;
+    for step in 0..6 {
+        let before = format!("{:?}", sim.state);
+        sim.set_solver_limits(1, 1e-300).unwrap();
+        assert!(sim.step().is_err());
+        assert_eq!(
+            before,
+            format!("{:?}", sim.state),
+            "step {step}: not restored"
+        );
+        sim.set_solver_limits(50, 1e-8).unwrap();
+        sim.step().unwrap();
+        // The test law accumulates h * |strain rate| (regularised): it grows every step.
+        let total: f64 = sim.state.material_history.iter().sum();
+        assert!(total > previous, "step {step}: {total} <= {previous}");
+        previous = total;
+    }
+}
