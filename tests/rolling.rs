@@ -181,8 +181,10 @@ macro_rules! per_method {
 // of the six run in the suite; each takes 20-50 s.
 per_method!(
     d2_soft_way: 2, ContactMethod::SoftWay;
+    #[cfg_attr(not(feature = "parallel"), ignore = "slow without threads (20-50 s): runs with the default features; nothing it reaches depends on a feature but the threaded assembly, which determinism.rs checks")]
     d2_implicit_projection: 2, ContactMethod::ImplicitProjection;
     #[ignore = "slow (20-50 s); soft way and implicit projection run"] d2_augmented_lagrangian: 2, ContactMethod::AugmentedLagrangian;
+    #[cfg_attr(not(feature = "parallel"), ignore = "slow without threads (20-50 s): runs with the default features; nothing it reaches depends on a feature but the threaded assembly, which determinism.rs checks")]
     d3_soft_way: 3, ContactMethod::SoftWay;
     #[ignore = "slow (20-50 s); the 2D one runs"] d3_augmented_lagrangian: 3, ContactMethod::AugmentedLagrangian;
     #[ignore = "slow (20-50 s); the 2D one runs"] d3_implicit_projection: 3, ContactMethod::ImplicitProjection;

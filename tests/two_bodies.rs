@@ -93,10 +93,35 @@ where
     assert!(error < 3e-2, "energy error {error}");
 }
 
-both_dims!(
-    a_stack_of_soft_blocks_lands_and_settles,
-    trapezoid_gaps_keep_the_stack_apart
-);
+mod d2 {
+    #[test]
+    fn a_stack_of_soft_blocks_lands_and_settles() {
+        super::a_stack_of_soft_blocks_lands_and_settles::<2>();
+    }
+    #[test]
+    fn trapezoid_gaps_keep_the_stack_apart() {
+        super::trapezoid_gaps_keep_the_stack_apart::<2>();
+    }
+}
+
+mod d3 {
+    #[test]
+    #[cfg_attr(
+        not(feature = "parallel"),
+        ignore = "slow without threads (20-50 s): runs with the default features; nothing it reaches depends on a feature but the threaded assembly, which determinism.rs checks"
+    )]
+    fn a_stack_of_soft_blocks_lands_and_settles() {
+        super::a_stack_of_soft_blocks_lands_and_settles::<3>();
+    }
+    #[test]
+    #[cfg_attr(
+        not(feature = "parallel"),
+        ignore = "slow without threads (20-50 s): runs with the default features; nothing it reaches depends on a feature but the threaded assembly, which determinism.rs checks"
+    )]
+    fn trapezoid_gaps_keep_the_stack_apart() {
+        super::trapezoid_gaps_keep_the_stack_apart::<3>();
+    }
+}
 
 mod open {
     use softway::contact::{ContactMethod, GapDisplacement};
