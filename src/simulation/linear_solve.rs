@@ -65,6 +65,11 @@ impl ContactFactor {
     pub(super) fn is_single_precision(&self) -> bool {
         self.cholesky.is_single_precision()
     }
+
+    #[cfg(test)]
+    pub(super) fn id(&self) -> u64 {
+        self.id
+    }
 }
 
 /// Number of unknowns whose contact stiffness `now` differs from the factored `then` by more

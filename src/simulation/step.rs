@@ -220,8 +220,10 @@ where
         recorder: &mut dyn Recorder<D>,
         count_step: bool,
     ) -> Result<StepReport> {
-        self.ensure_system(h)?;
+        // The cached factorisations the state names first: rebuilding one refactors the
+        // contact-free matrix for its own step size, which may not be this step's.
         self.sync_contact_factors()?;
+        self.ensure_system(h)?;
         if let Some(detector) = self.caches.detector.as_mut() {
             detector.set_memory(&self.state.contact_memory.detection);
         }

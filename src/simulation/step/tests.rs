@@ -487,3 +487,35 @@ fn material_history_is_state() {
         previous = total;
     }
 }
+
+/// A step after a half step whose contact factorisations the cache lacks (a failed attempt's
+/// cuts evicted them; restored, the state still names them): rebuilding them refactors the
+/// contact-free matrix for the half step, and the step must still solve with its own. It once
+/// kept the half step's matrix, converged elsewhere, and a retried step differed from the
+/// uninterrupted one.
+#[test]
+fn rebuilt_factorisations_leave_the_step_its_own_matrix() {
+    let (mut reference, _) = dropped_block(1e8, true, 4);
+    let (mut rebuilt, _) = dropped_block(1e8, true, 4);
+    let h = reference.model.settings.time_step;
+    for sim in [&mut reference, &mut rebuilt] {
+        sim.advance(0.5 * h, &mut NullRecorder).unwrap();
+    }
+    let half = rebuilt
+        .state
+        .contact_memory
+        .factors
+        .iter()
+        .find(|f| f.time_step == 0.5 * h)
+        .expect("the half step factored a contact matrix")
+        .id;
+    rebuilt.caches.contact_factors.retain(|f| f.id() != half);
+    let a = reference.step().unwrap();
+    let b = rebuilt.step().unwrap();
+    assert_eq!(rebuilt.caches.system.as_ref().unwrap().time_step, h);
+    assert_eq!(format!("{a:?}"), format!("{b:?}"));
+    assert_eq!(
+        format!("{:?}", reference.state),
+        format!("{:?}", rebuilt.state)
+    );
+}
