@@ -228,12 +228,13 @@ pub enum Error {
         /// The time the crossing took (s).
         crossing_time: f64,
     },
-    /// A cell of an updated-Lagrangian body turned inside out in every Newton iterate tried
-    /// (after halving the increment), at the step's finest cut.
+    /// A cell of an updated-Lagrangian body turned inside out (at t_alpha or at the end of
+    /// the step, at a quadrature point) in every Newton iterate tried (after halving the
+    /// increment) or after the end-of-step projection, at the step's finest cut.
     #[error(
-        "a cell turned inside out at step {step} (t = {time:.6e} s): its Jacobian at t_alpha is \
-         not positive even after halving the Newton increment {halvings} times and cutting the \
-         step; use a smaller time_step, a finer mesh where the body deforms most, or a softer \
+        "a cell turned inside out at step {step} (t = {time:.6e} s): its Jacobian at t_alpha or \
+         at the step's end is not positive even after halving the Newton increment {halvings} \
+         times and cutting the step; use a smaller time_step, a finer mesh where the body deforms most, or a softer \
          contact penalty"
     )]
     InvertedCell {

@@ -101,7 +101,12 @@ pub(super) fn cell_kernel<const D: usize>(
             let f = SMatrix::<f64, D, D>::identity() + <Dim<D>>::in_plane_block(&increment);
             let f_inv = <Dim<D>>::inverse(&f).unwrap_or_else(SMatrix::zeros);
             let jacobian = (nalgebra::Matrix3::identity() + increment).determinant();
-            if !(jacobian > 0.0) {
+            // The end of the step too: the next step starts there, and a cell folded at a
+            // quadrature point integrates with a negative volume, which makes the iteration
+            // matrix indefinite (the tube crush under implicit projection once failed its
+            // factorisation so, a step after ending with such a cell).
+            let end_jacobian = (nalgebra::Matrix3::identity() + end_increment).determinant();
+            if !(jacobian > 0.0 && end_jacobian > 0.0 && det > 0.0) {
                 // An inverted cell: the energy says so (NaN), and Newton backs off.
                 inverted = true;
             }

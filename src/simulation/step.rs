@@ -505,6 +505,17 @@ where
             .iter()
             .chain(&self.state.velocity)
             .all(|x| x.is_finite());
+        if finite && energies.internal.is_nan() {
+            // Finite fields but an updated-Lagrangian cell folded at the end of the step (the
+            // end-of-step projection moved a node through its own cell): an inverted cell,
+            // which a cut step may avoid, not an instability.
+            self.state = previous;
+            return Err(Error::InvertedCell {
+                step,
+                time: t0 + h,
+                halvings: 0,
+            });
+        }
         if !finite || !energies.total().is_finite() || energies.total() > limit {
             let detail = if !finite || !energies.total().is_finite() {
                 "a displacement, velocity or energy became non-finite".to_string()
