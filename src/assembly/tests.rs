@@ -234,8 +234,9 @@ fn the_material_part_alone_does_not_see_a_rotation() {
     assert!((&k * &spin).amax() < 1e-9 * k.amax());
 }
 
-/// A cell turned inside out by the increment reports it: the energy is NaN (Newton backs off
-/// on it, then the step is cut, then `Error::InvertedCell`).
+/// A cell turned inside out by the increment, at t_alpha or at the end of the step, reports it:
+/// the energy is NaN (Newton backs off on it, then the step is cut, then
+/// `Error::InvertedCell`).
 #[test]
 fn an_inverted_cell_makes_the_energy_nan() {
     let kind = ElementKind::Quad4;
@@ -243,13 +244,14 @@ fn an_inverted_cell_makes_the_energy_nan() {
     let law = Hypoelastic::new(1e6, 0.3, 1000.0, RotationUpdate::HughesWinget).unwrap();
     let body = BodyIntegration::new(Kinematics::PlaneStrain, Material::Hypoelastic(law));
     let cell: Vec<usize> = (0..4).collect();
-    let energy = |u: &[f64]| {
+    let energy_between = |start: &[f64], u: &[f64], end: Option<&[f64]>| {
         let mut e = 0.0;
         let mut force = vec![0.0; 8];
         let mut new_history = vec![0.0; history.len()];
         let fields = KernelFields {
             displacement: Some(u),
-            start: Some(&u0),
+            start: Some(start),
+            end,
             ..Default::default()
         };
         let out = CellOutput {
@@ -262,6 +264,7 @@ fn an_inverted_cell_makes_the_energy_nan() {
         cell_kernel::<2>(kind, &cell, &x, &body, &fields, out);
         e
     };
+    let energy = |u: &[f64]| energy_between(&u0, u, None);
     assert!(energy(&u0).is_finite());
     // Mirror the cell through its first node: every Jacobian turns negative.
     let mirrored: Vec<f64> = (0..8)
@@ -277,6 +280,11 @@ fn an_inverted_cell_makes_the_energy_nan() {
         })
         .collect();
     assert!(energy(&mirrored).is_nan());
+    // Folded at the end of the step only (fine at t_alpha): the next step would start from a
+    // negative volume, so this iterate is refused too.
+    assert!(energy_between(&u0, &u0, Some(&mirrored)).is_nan());
+    // Already folded at the start (a state that reached it some other way).
+    assert!(energy_between(&mirrored, &mirrored, None).is_nan());
 }
 
 /// The equivalent logarithmic strain of an incompressible uniaxial stretch is ln of the
