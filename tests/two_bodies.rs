@@ -102,6 +102,20 @@ mod d2 {
     fn trapezoid_gaps_keep_the_stack_apart() {
         super::trapezoid_gaps_keep_the_stack_apart::<2>();
     }
+    /// Uzawa with a fixed zeta (the paper's) needed over 50 iterations at the second landing
+    /// (t = 0.104 s); with the default growing penalty it runs to the end.
+    #[test]
+    fn a_stack_under_the_augmented_lagrangian() {
+        let (penetration, error) = super::stack::<2>(
+            softway::contact::ContactMethod::AugmentedLagrangian,
+            softway::contact::GapDisplacement::Configuration,
+        );
+        // Measured: energy error 6.1e-4, largest penetration 3.1e-4 m, the same open defect
+        // as the soft way's stack (the depth between the blocks after a step, far above what
+        // Uzawa's gaps say).
+        assert!(error < 2e-2, "energy error {error}");
+        assert!(penetration < 2e-3, "penetration {penetration}");
+    }
 }
 
 mod d3 {
@@ -121,19 +135,21 @@ mod d3 {
     fn trapezoid_gaps_keep_the_stack_apart() {
         super::trapezoid_gaps_keep_the_stack_apart::<3>();
     }
+    /// Measured: largest penetration 1.04e-3 m, energy error 3.7e-3.
+    #[test]
+    #[ignore = "slow (about 40 s); the 2D one runs"]
+    fn a_stack_under_the_augmented_lagrangian() {
+        let (penetration, error) = super::stack::<3>(
+            softway::contact::ContactMethod::AugmentedLagrangian,
+            softway::contact::GapDisplacement::Configuration,
+        );
+        assert!(error < 2e-2, "energy error {error}");
+        assert!(penetration < 2e-3, "penetration {penetration}");
+    }
 }
 
 mod open {
     use softway::contact::{ContactMethod, GapDisplacement};
-    #[test]
-    #[ignore = "no convergence within 50 iterations at t = 0.104 s (Uzawa on the second landing)"]
-    fn augmented_lagrangian_2d() {
-        let (_, error) = super::stack::<2>(
-            ContactMethod::AugmentedLagrangian,
-            GapDisplacement::Configuration,
-        );
-        assert!(error < 2e-2, "energy error {error}");
-    }
     #[test]
     #[ignore = "runs to the end, but 1.05e-3 m deep between the blocks after a step and its \
                 energy account off by 7.9e-2 of the reference (0.18 before the consistent \

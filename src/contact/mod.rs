@@ -16,6 +16,7 @@ pub use detection::{ContactPair, ContactSurface, DetectionOptions, Detector, Fea
 pub use obstacle::{MotionSegment, Obstacle, ObstacleShape};
 pub use resolution::{
     ContactMethod, ContactSettings, FrictionLaw, GapDisplacement, PenaltyForce, ProjectionMetric,
+    UzawaPenalty,
 };
 
 /// The master side of a contact, as remembered between iterations and steps.

@@ -74,8 +74,9 @@ const MAX_COUPLED: usize = 64;
 /// Whether the coupled solve is on for every method. Implicit projection always uses it
 /// ([`Method::coupled_tangent`]); for the penalty methods' Coulomb slip it is off (slip's
 /// coupling left out: symmetric quasi-Newton with backtracking). Measured with it on: the 3D
-/// gripper under the augmented Lagrangian lifts its block with the default settings (each
-/// Uzawa pass's Newton turns quadratic), but the 2D augmented-Lagrangian block near the cone
+/// gripper under the augmented Lagrangian with the paper's fixed zeta lifts its block with the
+/// default settings (each Uzawa pass's Newton turns quadratic; the default growing penalty
+/// lifts it without), but the 2D augmented-Lagrangian block near the cone
 /// (tests/friction.rs `hops_near_the_cone`) hops in 15.3 % of its steps and the 2D stick test's
 /// energy error is 2.98e-2 (bound 2e-2). (The bit-for-bit retry it once broke was a stale
 /// iteration matrix, fixed: `advance_once` syncs the cached factorisations first.)

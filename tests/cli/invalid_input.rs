@@ -232,6 +232,13 @@ fn out_of_range_numbers() {
             "\"step\" or \"node\"",
         ),
         (
+            "uzawa_penalty_unknown",
+            "contact.uzawa_penalty",
+            "uzawa_penalty = \"doubling\"",
+            "\"doubling\"",
+            "\"growing\" or \"fixed\"",
+        ),
+        (
             "contact_penalty_negative",
             "contact.penalty",
             "penalty = -1.0e9",

@@ -1,16 +1,30 @@
 //! The augmented Lagrangian with Uzawa updates (eq 28-30): soft-way solves around multipliers
 //! `lambda` (contact pressures), updated as `lambda <- max(0, lambda - zeta g)` until no gap is
 //! below `-gap_tolerance` and no pressure acts across a gap above it. The multipliers of closed
-//! pairs are carried from step to step; those of open pairs are dropped.
+//! pairs are carried from step to step; those of open pairs are dropped. By default
+//! ([`UzawaPenalty::Growing`]) a pair whose violation an update shrank by less than 4x gets a
+//! tenfold penalty for the rest of the step (at most 100 zeta); `Fixed` is the paper's.
 
 use std::collections::BTreeSet;
 
 use super::soft_way::penalty_law;
 use super::{Method, NormalInput, NormalLaw, OuterUpdate, OuterVariables, PairStatus};
-use crate::contact::{ContactKey, ContactSettings};
+use crate::contact::{ContactKey, ContactSettings, UzawaPenalty};
 
 /// The augmented Lagrangian (Uzawa).
 pub(crate) struct AugmentedLagrangian;
+
+/// A pair whose penetration an Uzawa update left above this fraction of the previous one gets
+/// a stiffer penalty for the rest of the step.
+const PENALTY_GROWTH_BELOW: f64 = 0.25;
+
+/// Largest multiple of `zeta` a pair's penalty reaches within a step.
+const MAX_PENALTY_SCALE: f64 = 100.0;
+
+/// A pair's penalty as a multiple of `zeta` (1 until raised in this step).
+fn penalty_scale(vars: &OuterVariables, key: &ContactKey) -> f64 {
+    vars.penalty_scales.get(key).copied().unwrap_or(1.0)
+}
 
 impl Method for AugmentedLagrangian {
     fn symmetric_pairs(&self) -> bool {
@@ -24,7 +38,11 @@ impl Method for AugmentedLagrangian {
         settings: &ContactSettings,
     ) -> NormalLaw {
         let lambda = vars.multipliers.get(&input.key).copied().unwrap_or(0.0);
-        penalty_law(lambda, input, settings.penalty)
+        penalty_law(
+            lambda,
+            input,
+            settings.penalty * penalty_scale(vars, &input.key),
+        )
     }
 
     fn stores_energy(&self) -> bool {
@@ -43,7 +61,9 @@ impl Method for AugmentedLagrangian {
         _time_step: f64,
         _log: &mut dyn FnMut(String),
     ) -> OuterUpdate {
-        let (zeta, tolerance) = (settings.penalty, settings.gap_tolerance);
+        let tolerance = settings.gap_tolerance;
+        let zeta =
+            |vars: &OuterVariables, p: &PairStatus| settings.penalty * penalty_scale(vars, &p.key);
         let lambda = |vars: &OuterVariables, p: &PairStatus| {
             vars.multipliers.get(&p.key).copied().unwrap_or(0.0)
         };
@@ -51,25 +71,52 @@ impl Method for AugmentedLagrangian {
         let penetrates = pairs.iter().any(|p| p.gap < -tolerance);
         let pushes_open = pairs
             .iter()
-            .any(|p| p.gap > tolerance && lambda(vars, p) - zeta * p.gap > 0.0);
+            .any(|p| p.gap > tolerance && lambda(vars, p) - zeta(vars, p) * p.gap > 0.0);
         if !penetrates && !pushes_open {
             // A pair whose update would give zero is open: its multiplier goes, as do those
             // of pairs no longer detected, so that a pair found again starts from zero
             // instead of being pushed apart by a stale pressure.
             let closed: BTreeSet<ContactKey> = pairs
                 .iter()
-                .filter(|p| lambda(vars, p) - zeta * p.gap > 0.0)
+                .filter(|p| lambda(vars, p) - zeta(vars, p) * p.gap > 0.0)
                 .map(|p| p.key)
                 .collect();
             vars.multipliers.retain(|key, _| closed.contains(key));
             return OuterUpdate::Converged;
         }
         for p in pairs {
-            let next = (lambda(vars, p) - zeta * p.gap).max(0.0);
+            // The pair's violation of Signorini: its penetration, or the gap a pressure acts
+            // across.
+            let pushing = lambda(vars, p) - zeta(vars, p) * p.gap > 0.0;
+            let violation = if p.gap < -tolerance {
+                -p.gap
+            } else if p.gap > tolerance && pushing {
+                p.gap
+            } else {
+                0.0
+            };
+            let next = (lambda(vars, p) - zeta(vars, p) * p.gap).max(0.0);
             if next > 0.0 {
                 vars.multipliers.insert(p.key, next);
             } else {
                 vars.multipliers.remove(&p.key);
+            }
+            // Uzawa shrinks a penetration by about k / (k + zeta A) per update (k the body's
+            // stiffness there), and takes an open gap's pressure away by zeta g per update:
+            // where the violation shrank by less than PENALTY_GROWTH_BELOW, the pair's penalty
+            // grows tenfold (the method of multipliers' penalty update).
+            let scale = penalty_scale(vars, &p.key);
+            let growing = settings.uzawa_penalty == UzawaPenalty::Growing;
+            if let (Some(&before), true) = (vars.previous_violations.get(&p.key), growing) {
+                if violation > PENALTY_GROWTH_BELOW * before && scale < MAX_PENALTY_SCALE {
+                    vars.penalty_scales
+                        .insert(p.key, (scale * 10.0).min(MAX_PENALTY_SCALE));
+                }
+            }
+            if violation > 0.0 {
+                vars.previous_violations.insert(p.key, violation);
+            } else {
+                vars.previous_violations.remove(&p.key);
             }
         }
         OuterUpdate::Again
@@ -77,5 +124,62 @@ impl Method for AugmentedLagrangian {
 
     fn carries_multipliers(&self) -> bool {
         true
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::contact::MasterId;
+
+    fn pair(gap: f64) -> PairStatus {
+        PairStatus {
+            key: (0, MasterId::Obstacle(0)),
+            gap,
+            normal_force: 0.0,
+            normal_velocity: 0.0,
+        }
+    }
+
+    /// Two updates on a penetration that shrank only 2x: the growing penalty goes tenfold,
+    /// the paper's stays; one that shrank 10x keeps its penalty either way.
+    #[test]
+    fn the_penalty_grows_where_uzawa_crawls() {
+        for (update, shrink, expected) in [
+            (UzawaPenalty::Growing, 0.5, 10.0),
+            (UzawaPenalty::Fixed, 0.5, 1.0),
+            (UzawaPenalty::Growing, 0.1, 1.0),
+        ] {
+            let settings = ContactSettings {
+                method: crate::contact::ContactMethod::AugmentedLagrangian,
+                penalty: 1e9,
+                uzawa_penalty: update,
+                ..ContactSettings::default()
+            };
+            let mut vars = OuterVariables::default();
+            let log = &mut |_: String| {};
+            let first =
+                AugmentedLagrangian.outer_update(&[pair(-1e-6)], &mut vars, &settings, 1e-3, log);
+            assert_eq!(first, OuterUpdate::Again);
+            AugmentedLagrangian.outer_update(
+                &[pair(-1e-6 * shrink)],
+                &mut vars,
+                &settings,
+                1e-3,
+                log,
+            );
+            let key = (0, MasterId::Obstacle(0));
+            assert_eq!(
+                penalty_scale(&vars, &key),
+                expected,
+                "{update:?}, shrink {shrink}"
+            );
+            // The multiplier took zeta g with the scale of the update.
+            let lambda = vars.multipliers[&key];
+            assert!(
+                (lambda - 1e9 * (1e-6 + 1e-6 * shrink)).abs() < 1e-6 * lambda,
+                "{lambda}"
+            );
+        }
     }
 }

@@ -13,6 +13,7 @@ use super::{LoadedScene, OutputOptions, Probe, Scene};
 use crate::contact::resolution::DEFAULT_REGULARIZATION;
 use crate::contact::{
     ContactMethod, ContactSettings, FrictionLaw, GapDisplacement, PenaltyForce, ProjectionMetric,
+    UzawaPenalty,
 };
 use crate::dim::{Dim, Kinematics, SpatialDim};
 use crate::error::{Error, Result};
@@ -367,6 +368,17 @@ impl LoadedScene {
                 ))
             }
         };
+        let uzawa_penalty = match c.uzawa_penalty.as_deref() {
+            None | Some("growing") => UzawaPenalty::Growing,
+            Some("fixed") => UzawaPenalty::Fixed,
+            Some(other) => {
+                return Err(self.error(
+                    "contact.uzawa_penalty",
+                    format!("\"{other}\""),
+                    "\"growing\" or \"fixed\"",
+                ))
+            }
+        };
         if penalty_force == PenaltyForce::Secant
             && (method != ContactMethod::SoftWay || gap_displacement != GapDisplacement::Trapezoid)
         {
@@ -390,6 +402,7 @@ impl LoadedScene {
             gap_displacement,
             projection,
             penalty_force,
+            uzawa_penalty,
             ..ContactSettings::default()
         })
     }

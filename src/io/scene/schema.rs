@@ -157,6 +157,9 @@ pub struct ContactSection {
     /// The soft way's pressure: "end_of_step" | "secant".
     #[serde(default)]
     pub penalty_force: Option<String>,
+    /// The augmented Lagrangian's penalty through Uzawa: "growing" | "fixed".
+    #[serde(default)]
+    pub uzawa_penalty: Option<String>,
 }
 
 fn default_method() -> String {
@@ -174,6 +177,7 @@ impl Default for ContactSection {
             gap_displacement: None,
             projection: None,
             penalty_force: None,
+            uzawa_penalty: None,
         }
     }
 }
