@@ -70,7 +70,7 @@ where
 /// rocking, which the work of gravity feeds and friction dissipates. It is the model's, not a
 /// step's or a method's: at h = 0.1 ms (the block's first mode resolved, omega h = 0.5) and 5 %
 /// damping, the three methods walk the same 4.4 mm between 0.1 s and 1 s (measured 4.418,
-/// 4.430, 4.456 mm, implicit projection, soft way, augmented Lagrangian), and finer meshes walk
+/// 4.430, 4.479 mm, implicit projection, soft way, augmented Lagrangian), and finer meshes walk
 /// too (3.6 and 3.4 mm/s with 2x and 4x the cells, against 4.9 mm/s, soft way). 2D only: the
 /// 3D runs at this step take minutes.
 #[test]
