@@ -193,28 +193,22 @@ impl LoadedScene {
         if !(s.tolerance > 0.0 && s.tolerance < 1.0) {
             return Err(self.error("simulation.tolerance", s.tolerance, "a number in (0, 1)"));
         }
-        let mass = match s.mass.as_deref() {
-            None | Some("consistent") => MassKind::Consistent,
-            Some("lumped") => MassKind::Lumped,
-            Some(m) => {
-                return Err(self.error(
-                    "simulation.mass",
-                    format!("\"{m}\""),
-                    "\"consistent\" or \"lumped\"",
-                ))
-            }
-        };
-        let ordering = match s.ordering.as_deref() {
-            None | Some("nested_dissection") => FillOrdering::NestedDissection,
-            Some("minimum_degree") => FillOrdering::MinimumDegree,
-            Some(o) => {
-                return Err(self.error(
-                    "simulation.ordering",
-                    format!("\"{o}\""),
-                    "\"nested_dissection\" or \"minimum_degree\"",
-                ))
-            }
-        };
+        let mass = self.keyword(
+            "simulation.mass",
+            s.mass.as_deref(),
+            &[
+                ("consistent", MassKind::Consistent),
+                ("lumped", MassKind::Lumped),
+            ],
+        )?;
+        let ordering = self.keyword(
+            "simulation.ordering",
+            s.ordering.as_deref(),
+            &[
+                ("nested_dissection", FillOrdering::NestedDissection),
+                ("minimum_degree", FillOrdering::MinimumDegree),
+            ],
+        )?;
         Ok(Settings {
             time_step,
             scheme,
@@ -335,50 +329,38 @@ impl LoadedScene {
                  implicit_projection or augmented_lagrangian), or law = \"frictionless\"",
             ));
         }
-        let gap_displacement = match c.gap_displacement.as_deref() {
-            None | Some("configuration") => GapDisplacement::Configuration,
-            Some("trapezoid") => GapDisplacement::Trapezoid,
-            Some(other) => {
-                return Err(self.error(
-                    "contact.gap_displacement",
-                    format!("\"{other}\""),
-                    "\"configuration\" or \"trapezoid\"",
-                ))
-            }
-        };
-        let projection = match c.projection.as_deref() {
-            None | Some("step") => ProjectionMetric::Step,
-            Some("node") => ProjectionMetric::Node,
-            Some(other) => {
-                return Err(self.error(
-                    "contact.projection",
-                    format!("\"{other}\""),
-                    "\"step\" or \"node\"",
-                ))
-            }
-        };
-        let penalty_force = match c.penalty_force.as_deref() {
-            None | Some("end_of_step") => PenaltyForce::EndOfStep,
-            Some("secant") => PenaltyForce::Secant,
-            Some(other) => {
-                return Err(self.error(
-                    "contact.penalty_force",
-                    format!("\"{other}\""),
-                    "\"end_of_step\" or \"secant\"",
-                ))
-            }
-        };
-        let uzawa_penalty = match c.uzawa_penalty.as_deref() {
-            None | Some("growing") => UzawaPenalty::Growing,
-            Some("fixed") => UzawaPenalty::Fixed,
-            Some(other) => {
-                return Err(self.error(
-                    "contact.uzawa_penalty",
-                    format!("\"{other}\""),
-                    "\"growing\" or \"fixed\"",
-                ))
-            }
-        };
+        let gap_displacement = self.keyword(
+            "contact.gap_displacement",
+            c.gap_displacement.as_deref(),
+            &[
+                ("configuration", GapDisplacement::Configuration),
+                ("trapezoid", GapDisplacement::Trapezoid),
+            ],
+        )?;
+        let projection = self.keyword(
+            "contact.projection",
+            c.projection.as_deref(),
+            &[
+                ("step", ProjectionMetric::Step),
+                ("node", ProjectionMetric::Node),
+            ],
+        )?;
+        let penalty_force = self.keyword(
+            "contact.penalty_force",
+            c.penalty_force.as_deref(),
+            &[
+                ("end_of_step", PenaltyForce::EndOfStep),
+                ("secant", PenaltyForce::Secant),
+            ],
+        )?;
+        let uzawa_penalty = self.keyword(
+            "contact.uzawa_penalty",
+            c.uzawa_penalty.as_deref(),
+            &[
+                ("growing", UzawaPenalty::Growing),
+                ("fixed", UzawaPenalty::Fixed),
+            ],
+        )?;
         if penalty_force == PenaltyForce::Secant
             && (method != ContactMethod::SoftWay || gap_displacement != GapDisplacement::Trapezoid)
         {
@@ -683,6 +665,27 @@ impl LoadedScene {
             ));
         }
         Ok(())
+    }
+
+    /// The variant a keyword names among `choices` (the first is the default when the key is
+    /// absent), or an error listing the names.
+    pub(super) fn keyword<T: Copy>(
+        &self,
+        key: &str,
+        value: Option<&str>,
+        choices: &[(&str, T)],
+    ) -> Result<T> {
+        let Some(value) = value else {
+            return Ok(choices[0].1);
+        };
+        choices
+            .iter()
+            .find(|(name, _)| *name == value)
+            .map(|&(_, choice)| choice)
+            .ok_or_else(|| {
+                let names: Vec<String> = choices.iter().map(|(n, _)| format!("\"{n}\"")).collect();
+                self.error(key, format!("\"{value}\""), names.join(" or "))
+            })
     }
 
     pub(super) fn non_negative(&self, key: &str, v: f64, unit: &str) -> Result<f64> {
