@@ -151,11 +151,10 @@ mod d3 {
     fn soft_way() {
         super::the_block_rises_with_the_jaws::<3>(ContactMethod::SoftWay);
     }
+    /// Lifts 29.82 mm of 30 (slip 0.18 mm) with the default growing penalty; with the paper's
+    /// fixed zeta, Uzawa needed about 120 iterations at the first touch.
     #[test]
-    #[cfg_attr(
-        not(feature = "parallel"),
-        ignore = "slow without threads (20-50 s): runs with the default features; nothing it reaches depends on a feature but the threaded assembly, which determinism.rs checks"
-    )]
+    #[ignore = "slow (13 s, CI's budget): the 3D soft way and the 2D augmented Lagrangian run"]
     fn augmented_lagrangian() {
         super::the_block_rises_with_the_jaws::<3>(ContactMethod::AugmentedLagrangian);
     }
