@@ -233,9 +233,9 @@ pub enum Error {
     /// increment) or after the end-of-step projection, at the step's finest cut.
     #[error(
         "a cell turned inside out at step {step} (t = {time:.6e} s): its Jacobian at t_alpha or \
-         at the step's end is not positive even after halving the Newton increment {halvings} \
-         times and cutting the step; use a smaller time_step, a finer mesh where the body deforms most, or a softer \
-         contact penalty"
+         at the step's end is not positive {}, down to the step's finest cut; use a smaller \
+         time_step, a finer mesh where the body deforms most, or a softer contact penalty",
+        inversion_tries(*halvings)
     )]
     InvertedCell {
         /// Step number (1-based).
@@ -280,3 +280,13 @@ pub enum Error {
 
 /// `Result` with softway's [`Error`].
 pub type Result<T, E = Error> = std::result::Result<T, E>;
+
+/// What was tried before [`Error::InvertedCell`]: Newton's increment halved, or (none) the
+/// first iterate or the end-of-step correction folded the cell.
+fn inversion_tries(halvings: usize) -> String {
+    if halvings == 0 {
+        "at the first Newton iterate or after the end-of-step correction".to_string()
+    } else {
+        format!("even after halving the Newton increment {halvings} times")
+    }
+}
