@@ -14,8 +14,8 @@ use crate::contact::{ContactKey, ContactSettings, UzawaPenalty};
 /// The augmented Lagrangian (Uzawa).
 pub(crate) struct AugmentedLagrangian;
 
-/// A pair whose penetration an Uzawa update left above this fraction of the previous one gets
-/// a stiffer penalty for the rest of the step.
+/// A pair whose violation an Uzawa update left above this fraction of the previous one gets a
+/// stiffer penalty for the rest of the step.
 const PENALTY_GROWTH_BELOW: f64 = 0.25;
 
 /// Largest multiple of `zeta` a pair's penalty reaches within a step.
@@ -84,18 +84,19 @@ impl Method for AugmentedLagrangian {
             vars.multipliers.retain(|key, _| closed.contains(key));
             return OuterUpdate::Converged;
         }
+        let growing = settings.uzawa_penalty == UzawaPenalty::Growing;
         for p in pairs {
+            let trial = lambda(vars, p) - zeta(vars, p) * p.gap;
             // The pair's violation of Signorini: its penetration, or the gap a pressure acts
             // across.
-            let pushing = lambda(vars, p) - zeta(vars, p) * p.gap > 0.0;
             let violation = if p.gap < -tolerance {
                 -p.gap
-            } else if p.gap > tolerance && pushing {
+            } else if p.gap > tolerance && trial > 0.0 {
                 p.gap
             } else {
                 0.0
             };
-            let next = (lambda(vars, p) - zeta(vars, p) * p.gap).max(0.0);
+            let next = trial.max(0.0);
             if next > 0.0 {
                 vars.multipliers.insert(p.key, next);
             } else {
@@ -106,7 +107,6 @@ impl Method for AugmentedLagrangian {
             // where the violation shrank by less than PENALTY_GROWTH_BELOW, the pair's penalty
             // grows tenfold (the method of multipliers' penalty update).
             let scale = penalty_scale(vars, &p.key);
-            let growing = settings.uzawa_penalty == UzawaPenalty::Growing;
             if let (Some(&before), true) = (vars.previous_violations.get(&p.key), growing) {
                 if violation > PENALTY_GROWTH_BELOW * before && scale < MAX_PENALTY_SCALE {
                     vars.penalty_scales

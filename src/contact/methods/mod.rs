@@ -46,7 +46,7 @@ pub(crate) struct OuterVariables {
     /// Whether [`Method::start`] ran in this step.
     pub started: bool,
     /// Augmented Lagrangian: each pair's penalty as a multiple of `zeta`, raised where an
-    /// Uzawa update did not shrink the pair's penetration enough (this step only).
+    /// Uzawa update did not shrink the pair's violation enough (this step only).
     pub penalty_scales: BTreeMap<ContactKey, f64>,
     /// Augmented Lagrangian: each violating pair's violation (penetration, or the open gap a
     /// pressure acts across) at the previous Uzawa update (m).
