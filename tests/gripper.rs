@@ -139,11 +139,11 @@ mod d2 {
 
 mod d3 {
     use softway::contact::ContactMethod;
+    /// Lifts 29.77 mm of 30 (slip 0.23 mm). Newton stalled at step 104 as the jaws took hold
+    /// (floor nodes' slips reversing in every iteration) until a stalled Newton was retried
+    /// with the line search and the secant slip tangent.
     #[test]
-    #[ignore = "no convergence at t = 0.103 s (step 104) as the jaws take hold: Newton backtracks \
-                on the friction return map's stick/slip kink (it runs with a tangential \
-                stiffness of 1 or 10 diagonals per step instead of 100, which makes the 2D \
-                block on a slope hop)"]
+    #[ignore = "slow (39 s, CI's budget): the 2D one runs"]
     fn implicit_projection() {
         super::the_block_rises_with_the_jaws::<3>(ContactMethod::ImplicitProjection);
     }

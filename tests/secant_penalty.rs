@@ -141,21 +141,22 @@ fn bar_impact(k: f64, gaps: GapDisplacement, force: PenaltyForce) -> Option<f64>
 }
 
 /// At steps above the explicit limit the paper's pressure puts energy into the bouncing bar
-/// (its stiff contact springs close and open within a few steps); the secant does not.
-/// Measured Q(end) / Q(0), k = 2, 5, 10: configuration gaps 1.30, 444, 249; trapezoid gaps
-/// 4.73, 168, 146; secant 1.0035, 1.017, 1.019 (and 1.0000 at k = 20, where both others stop
-/// without convergence; 1.32 at k = 50).
+/// (its stiff contact springs close and open within a few steps), more the larger the step;
+/// the secant does not. Measured Q(end) / Q(0), k = 2, 5, 10: configuration gaps with the
+/// paper's pressure 1.018, 1.052, 1.105; secant 1 within 2e-10. (Before Newton accepted a
+/// residual at its floating-point floor, the paper's pressure stalled at relative residuals of
+/// 1.05e-8 to 1.7e-8 on many steps, and the cut steps made those figures 1.30, 444 and 249.)
 #[test]
 fn secant_pressure_keeps_the_bar_impact_at_large_steps() {
+    let mut growth = 1.0;
     for k in [2.0, 5.0, 10.0] {
         let paper = bar_impact(k, GapDisplacement::Configuration, PenaltyForce::EndOfStep);
         let secant = bar_impact(k, GapDisplacement::Trapezoid, PenaltyForce::Secant);
         eprintln!("k = {k}: Q(end)/Q(0) {paper:?} (paper's pressure), {secant:?} (secant)");
         let secant = secant.expect("the secant runs");
-        assert!((secant - 1.0).abs() < 0.03, "k = {k}: secant {secant}");
-        assert!(
-            paper.is_some_and(|p| p > 1.25),
-            "k = {k}: paper's {paper:?}"
-        );
+        assert!((secant - 1.0).abs() < 1e-6, "k = {k}: secant {secant}");
+        let paper = paper.expect("the paper's pressure runs");
+        assert!(paper > 1.01 && paper > growth, "k = {k}: paper's {paper}");
+        growth = paper;
     }
 }

@@ -35,6 +35,10 @@ pub(super) struct ContactTerms<const D: usize> {
     /// slipping contact (sparse `u`, `v`). Newton adds it to the symmetric solves by the
     /// Sherman-Morrison-Woodbury formula, so that the Cholesky never sees it.
     pub coupling: Vec<RankOne>,
+    /// The floating-point noise of the contact forces (N): a gap is known to a unit in the
+    /// last place of the positions it is measured between, and each normal law multiplies it
+    /// by its stiffness per unit of gap (the root sum of squares over the pairs).
+    pub round_off: f64,
     /// Penalty energy stored in the gaps (J).
     pub energy: f64,
     /// Friction dissipation rate (W).
@@ -65,6 +69,9 @@ pub(super) struct TermsInput<'a, const D: usize> {
     pub friction_anchors: &'a BTreeMap<ContactKey, SVector<f64, D>>,
     /// The diagonal of the contact-free iteration matrix.
     pub diagonal: &'a [f64],
+    /// The friction forces' directions at Newton's previous iterate (unit vectors; see
+    /// `return_map`).
+    pub slip_directions: &'a BTreeMap<ContactKey, SVector<f64, D>>,
 }
 
 fn block_entries<const D: usize>(
@@ -243,6 +250,12 @@ where
                 .method
                 .normal_law(&law_input, input.vars, &self.model.contact);
             let (normal_force, normal_stiffness) = (normal_law.force, normal_law.stiffness);
+            // The gap moves by h/2 per unit of normal velocity.
+            let reach = x_gap[s].norm().max(master_point.norm());
+            let noise = normal_stiffness
+                * f64::EPSILON
+                * (2.0 * reach / h + normal_velocity.abs() + master_velocity.norm());
+            terms.round_off = terms.round_off.hypot(noise);
             let law = self.friction_law(obstacle);
             // d(-friction)/dw1 (w1 the relative end velocity), the elastic slip after the
             // step, and d friction/d F_n (the non-symmetric coupling).
@@ -278,7 +291,15 @@ where
                     let stiffness = input
                         .method
                         .tangential_stiffness(&law_input, &self.model.contact);
-                    let map = return_map(limit, stiffness, &previous, &r1, &normal, h);
+                    let map = return_map(
+                        limit,
+                        stiffness,
+                        &previous,
+                        &r1,
+                        &normal,
+                        h,
+                        input.slip_directions.get(&key),
+                    );
                     anchor = Some(map.anchor);
                     if !lagged && matches!(law, FrictionLaw::Coulomb { .. }) {
                         d_normal_force = map.d_limit * law.slip_limit(1.0, area);

@@ -20,6 +20,7 @@ mod damping;
 mod edit;
 mod fixed_timestep;
 mod handles;
+mod line_search;
 mod linear_solve;
 pub mod model;
 mod monitor;
@@ -101,6 +102,11 @@ pub struct StepReport {
     pub contacts: Vec<(usize, f64, f64)>,
     /// Times the step was cut in two (no convergence, or a cell turned inside out).
     pub cuts: usize,
+    /// Whether Newton's plain iteration stalled on the step (or on a piece of it) and the
+    /// globalized one solved it: a line search on the step's energy, and the secant tangent
+    /// for friction slips that turned (`Simulation::step` tries it before it cuts a step).
+    #[serde(default)]
+    pub globalized: bool,
     /// Contact points whose status implicit projection held until the step ended because its
     /// active set cycled: points released twice in the step (kept closed) and, when an active
     /// set came back, the points that kept flipping (kept as they were). 0 for the other
@@ -144,6 +150,10 @@ where
     /// Active sets that came back in the step under way, over all its attempts (cut ones
     /// included): an output of the step, not state.
     step_cycles: usize,
+    /// Whether the attempt under way runs the globalized Newton (a line search on the step's
+    /// energy, the secant tangent for slips that turned; `newton.rs`): a step whose plain
+    /// Newton stalls is tried again with it before it is cut. Per attempt, not state.
+    globalized_newton: bool,
     /// The step just taken as detection swept it (one per piece of a cut step), for the
     /// tunnelling watch ([`Simulation::tunnelled`]): an output of the step, not state.
     sweeps: Vec<overlap::Sweep<D>>,
@@ -575,6 +585,7 @@ where
             general_path,
             contact_log: Default::default(),
             step_cycles: 0,
+            globalized_newton: false,
             sweeps: Vec::new(),
             caches: Caches {
                 system: None,

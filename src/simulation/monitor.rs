@@ -408,6 +408,7 @@ mod tests {
             contact_forces: Vec::new(),
             contacts: Vec::new(),
             cuts: 0,
+            globalized: false,
             held_contacts,
             contact_cycles,
         }

@@ -69,7 +69,28 @@ where
         depth: usize,
         last_piece: bool,
     ) -> Result<StepReport> {
-        match self.advance_once(h, recorder, last_piece) {
+        let mut attempt = self.advance_once(h, recorder, last_piece);
+        if let Err(Error::NotConverged { .. }) = attempt {
+            // Newton's plain iteration stalled: the same step with the globalized one, before
+            // the step is cut (the plain path stays the default: it is the paper's, and where
+            // it converges the two find the same answer by different routes).
+            recorder.log(
+                self,
+                &format!(
+                    "step {} at t = {:.6e} s: no convergence with h = {h:.3e} s, trying the \
+                     line search and the secant slip tangent",
+                    self.state.step + 1,
+                    self.state.time
+                ),
+            );
+            self.globalized_newton = true;
+            attempt = self.advance_once(h, recorder, last_piece);
+            self.globalized_newton = false;
+            if let Ok(report) = &mut attempt {
+                report.globalized = true;
+            }
+        }
+        match attempt {
             Err(Error::NotConverged { .. } | Error::InvertedCell { .. }) if depth < MAX_CUTS => {
                 recorder.log(
                     self,
@@ -85,6 +106,7 @@ where
                 second.iterations += first.iterations;
                 second.cuts += first.cuts + 1;
                 second.held_contacts = second.held_contacts.max(first.held_contacts);
+                second.globalized |= first.globalized;
                 second.time_step = h;
                 for (a, b) in second.reactions.iter_mut().zip(&first.reactions) {
                     for (x, y) in a.iter_mut().zip(b) {
@@ -559,6 +581,7 @@ where
             contact_forces,
             contacts,
             cuts: 0,
+            globalized: false,
             held_contacts: vars.locked.len(),
             contact_cycles: 0,
         };

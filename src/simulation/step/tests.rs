@@ -55,6 +55,7 @@ fn forces_and_tangent(
             friction_normals,
             friction_anchors: anchors,
             diagonal: &diagonal,
+            slip_directions: &Default::default(),
         },
     );
     let mut k = nalgebra::DMatrix::zeros(n, n);
