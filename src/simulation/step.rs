@@ -72,8 +72,8 @@ where
         let mut attempt = self.advance_once(h, recorder, last_piece);
         if let Err(Error::NotConverged { .. }) = attempt {
             // Newton's plain iteration stalled: the same step with the globalized one, before
-            // the step is cut (the plain path stays the default: it is the paper's, and where
-            // it converges the two find the same answer by different routes).
+            // the step is cut (the plain iteration stays the first attempt: it is the paper's,
+            // and the path the measured results were taken on).
             recorder.log(
                 self,
                 &format!(
