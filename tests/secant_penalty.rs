@@ -99,41 +99,11 @@ both_dims!(secant_pressure_keeps_the_bounce_elastic);
 /// zeta = 1e5 E / L) at k times the explicit stable step l_e / c: the scheme's conserved energy
 /// at the end over the initial energy, or `None` when a step did not converge.
 fn bar_impact(k: f64, gaps: GapDisplacement, force: PenaltyForce) -> Option<f64> {
-    use nalgebra::Vector2;
-    let (l, e, rho, v0, gap) = (1.0, 200e9, 8000.0, 1.0, 1e-4);
-    let c = f64::sqrt(e / rho);
-    let mesh = rectangle(
-        Vector2::zeros(),
-        Vector2::new(l, 0.1),
-        [100, 1],
-        ElementKind::Quad4,
-    )
-    .unwrap();
-    let steel = Material::LinearElastic(LinearElastic::new(e, 0.0, rho).unwrap());
-    let bar = Body::new("bar", mesh, steel).with_velocity(Vector2::new(v0, 0.0));
-    let wall = Obstacle::new(
-        "wall",
-        ObstacleShape::Halfspace {
-            point: Vector2::new(l + gap, 0.0),
-            normal: Vector2::new(-1.0, 0.0),
-        },
-    );
-    let h = k * (l / 100.0) / c;
-    let mut sim = Simulation2::builder()
-        .time_step(h)
-        .body(bar)
-        .obstacle(wall)
-        .contact(ContactSettings {
-            method: ContactMethod::SoftWay,
-            penalty: 1e5 * e / l,
-            gap_displacement: gaps,
-            penalty_force: force,
-            ..ContactSettings::default()
-        })
-        .build()
-        .unwrap();
+    let (mut sim, transit) = common::steel_bar_at_a_wall(k, gaps, force);
+    let h = sim.model().settings.time_step;
     let q0 = sim.scheme_energy();
-    let end = 2.0 * gap / v0 + 2.0 * l / c + 10.0 * h;
+    // The bar reaches the wall 0.1 mm away at 1 m/s, then stays in contact for 2 l / c.
+    let end = 2e-4 + 2.0 * transit + 10.0 * h;
     while sim.state().time < end {
         sim.step().ok()?;
     }

@@ -4,7 +4,8 @@
 //! modes the step does not resolve (a known defect: the contact chapter, "A stalled Newton is
 //! retried").
 
-use nalgebra::Vector2;
+mod common;
+
 use softway::contact::{GapDisplacement, PenaltyForce};
 use softway::prelude::*;
 
@@ -14,45 +15,16 @@ use softway::prelude::*;
 /// `cut(n)` says (n counted from the separation) are taken as two halves. Returns Q at the end
 /// over Q at the separation.
 fn free_flight_after_impact(k: f64, cut: impl Fn(usize) -> bool) -> f64 {
-    let (l, e, rho) = (1.0, 200e9, 8000.0);
-    let c = f64::sqrt(e / rho);
-    let mesh = rectangle(
-        Vector2::zeros(),
-        Vector2::new(l, 0.1),
-        [100, 1],
-        ElementKind::Quad4,
-    )
-    .unwrap();
-    let steel = Material::LinearElastic(LinearElastic::new(e, 0.0, rho).unwrap());
-    let bar = Body::new("bar", mesh, steel).with_velocity(Vector2::new(1.0, 0.0));
-    let wall = Obstacle::new(
-        "wall",
-        ObstacleShape::Halfspace {
-            point: Vector2::new(l + 1e-4, 0.0),
-            normal: Vector2::new(-1.0, 0.0),
-        },
-    );
-    let h = k * (l / 100.0) / c;
-    let mut sim = Simulation2::builder()
-        .time_step(h)
-        .body(bar)
-        .obstacle(wall)
-        .contact(ContactSettings {
-            method: ContactMethod::SoftWay,
-            penalty: 1e5 * e / l,
-            gap_displacement: GapDisplacement::Trapezoid,
-            penalty_force: PenaltyForce::Secant,
-            ..ContactSettings::default()
-        })
-        .build()
-        .unwrap();
-    let separated = 3.0 * l / c;
+    let (mut sim, transit) =
+        common::steel_bar_at_a_wall(k, GapDisplacement::Trapezoid, PenaltyForce::Secant);
+    let h = sim.model().settings.time_step;
+    let separated = 3.0 * transit;
     while sim.state().time < separated {
         sim.step().unwrap();
     }
     let q = sim.scheme_energy();
     let mut n = 0;
-    while sim.state().time < separated + 4.0 * l / c {
+    while sim.state().time < separated + 4.0 * transit {
         n += 1;
         if cut(n) {
             sim.advance(0.5 * h, &mut NullRecorder).unwrap();
