@@ -9,7 +9,7 @@
 //!   (every surface node against every surface facet of its own body, except the facets that
 //!   hold the node and their neighbours, facing facets only, within half the wall), is
 //!   bounded: the soft way by twice the penalty's largest pressure over zeta (2D; 3D is open),
-//!   implicit projection by [`PROJECTION_BOUND`] (open: it stops converging);
+//!   implicit projection by [`ONE_PASS_BOUND`] (2D; [`PROJECTION_BOUND`] and 3D are open);
 //! * self-contact points carried force (the step's contacts, master = the strip itself);
 //! * the energy never exceeds E(0) plus the external work by more than [`ENERGY_SLACK`] of
 //!   the energy reference, and the account closes to [`ACCOUNT`];
@@ -45,10 +45,16 @@ const END: f64 = 0.6;
 const CLEARANCE: f64 = 2.5e-4;
 /// The soft way's zeta (Pa/m): the gripper's, zeta l_e / E = 5 here (the book's guide).
 const ZETA: f64 = 1e9;
-/// Implicit projection: the largest self-penetration allowed (m). The active set holds its
-/// points to gap_tolerance (1e-9 m) and the end-of-step projection leaves 1e-8 of what it
-/// corrects; what remains is bounded by a micrometre (1e-4 of the wall).
+/// Implicit projection: the largest self-penetration allowed (m) as the issue states it, for
+/// every node. The active set holds its points to gap_tolerance (1e-9 m) and the end-of-step
+/// projection leaves 1e-8 of what it corrects; but the projections hold one pass, and the other
+/// side's nodes are held by nothing (open).
 const PROJECTION_BOUND: f64 = 1e-6;
+/// Implicit projection with one pass: the largest self-penetration allowed (m), half a percent
+/// of the wall. A node of the side that is not held (a master) can sit between two held slave
+/// nodes by the sagitta of their facet, `l^2 kappa / 8`: 2.6e-5 m for l = 5.2 mm on an arm
+/// bent to a radius of 13 cm.
+const ONE_PASS_BOUND: f64 = 5e-5;
 /// Energy created beyond the input allowed, relative to the energy reference.
 const ENERGY_SLACK: f64 = 2e-2;
 /// The account's error allowed at the end, relative (the soft way's on the ring drop: 2.7e-2).
@@ -529,6 +535,21 @@ fn soft_way_within_twice_pressure_over_zeta_2d() {
     assert_within(&f, 2.0 * f.pressure / ZETA);
 }
 
+/// Implicit projection in 2D, the bundled folding strip's method. Measured: largest
+/// self-penetration 2.60e-5 m (node 182 of the upper arm, a master of the one pass), 277 steps
+/// with self-contact (at most 13 points), self-contact force 1.409e3 N/m against the plate's
+/// 1.415e3, energy created 5.6e-4 of the reference, account error 7.2e-3, 4311 iterations
+/// (at most 60 in a step). It stopped at t = 0.575 s while the end-of-step projection also moved
+/// the pairs that Newton had dropped: their correction strained the fold's tip, created energy
+/// step after step (the energy booked as dissipated fell to -23.7 J against 0.31 J of plate
+/// work) and Newton lost the step.
+#[test]
+fn implicit_projection_keeps_the_fold_apart_2d() {
+    let f = run::<2>(ContactMethod::ImplicitProjection, true);
+    assert_resolved(&f);
+    assert_within(&f, ONE_PASS_BOUND);
+}
+
 /// What does not hold yet (the book's contact chapter, Limits).
 mod open {
     use super::*;
@@ -542,15 +563,19 @@ mod open {
     }
 
     #[test]
-    #[ignore = "no convergence at t = 0.575 s (step 576), the fold squeezed as the plate stops"]
-    fn implicit_projection_2d() {
+    #[ignore = "2.60e-5 m: one pass leaves the masters' nodes unheld (a second pass of the \
+                penetrating reverse pairs created 3e-2 of the reference, at most 108 \
+                iterations a step; with every reverse pair it stopped at 0.419 s)"]
+    fn implicit_projection_2d_every_node() {
         let f = run::<2>(ContactMethod::ImplicitProjection, true);
         assert_resolved(&f);
         assert_within(&f, PROJECTION_BOUND);
     }
 
     #[test]
-    #[ignore = "no convergence at t = 0.536 s (step 537), the fold squeezed as the plate stops"]
+    #[ignore = "slow: past the step it stopped at (537), but from step 529 Newton fails at \
+                full size and the line search takes about 30 s a step (t = 0.538 s of 0.6 \
+                after 30 minutes)"]
     fn implicit_projection_3d() {
         let f = run::<3>(ContactMethod::ImplicitProjection, true);
         assert_resolved(&f);

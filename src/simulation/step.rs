@@ -335,7 +335,11 @@ where
                     &start.obstacles_t0,
                     &start.obstacles_t1,
                 );
-                let pairs = detector.pairs(&x_end, &start.obstacles_t1);
+                let mut pairs = detector.pairs(&x_end, &start.obstacles_t1);
+                let facets = detector.surface().facets().to_vec();
+                if method.in_newton() {
+                    self.held_pairs(method, &mut pairs);
+                }
                 let (u_before, v_before) = (u1.clone(), v1.clone());
                 let mut impulses = vec![vec![0.0; D]; self.model.obstacles.len()];
                 // Projected on the gaps' positions; the configuration moves with them.
@@ -343,7 +347,6 @@ where
                 if rule == EndProjection::Active
                     && self.model.contact.projection == ProjectionMetric::Step
                 {
-                    let facets = detector.surface().facets().to_vec();
                     // Twice: the first correction can bring neighbours of the contact
                     // patch into the master.
                     let mut pairs = pairs;
@@ -359,6 +362,7 @@ where
                                 &start.obstacles_t1,
                             );
                             pairs = detector.pairs(&x_end, &start.obstacles_t1);
+                            self.held_pairs(method, &mut pairs);
                         }
                         let du = self.weighted_projection(&pairs, &facets, &x_end, h, step)?;
                         for (g, d) in gap_u1.iter_mut().zip(&du) {
