@@ -16,7 +16,7 @@ use super::observe::{IterationInfo, Recorder};
 use super::{end_positions, Simulation};
 use crate::assembly::{self, KernelFields};
 use crate::contact::methods::{self, Method, OuterUpdate, OuterVariables, PairStatus};
-use crate::contact::{ContactKey, ContactPair, FrictionLaw, Master, Obstacle};
+use crate::contact::{ContactKey, ContactPair, ContactSurface, FrictionLaw, Master, Obstacle};
 use crate::dim::{Dim, SpatialDim};
 use crate::error::{Error, Result};
 use crate::friction::{threshold_change, ThresholdSample};
@@ -61,38 +61,36 @@ fn one_pass_self_contact<const D: usize>(
     });
 }
 
-impl<const D: usize> Simulation<D>
-where
+/// The detected pairs the method holds. Between two bodies, the penalty methods keep both
+/// passes (each body's nodes against the other's facets, at half the contact area each: the
+/// same total stiffness on matching faces, and no corner of either body left unchecked); the
+/// projections keep one pass (the nodes of the body listed first are slaves) so that no
+/// constraint is duplicated; within a fold, of two pairs that hold each other's slave
+/// (`one_pass_self_contact`), the one with the smaller slave. Implicit projection's end-of-step
+/// projection moves the same pairs that Newton held: moving a dropped pair too (a fold's
+/// corner measured against the other side's end vertex) strained the tip out of what Newton
+/// solved and put energy in. Explicit projection holds nothing in Newton and projects every
+/// pair. `offsets`: the first node of each body.
+pub(super) fn held_pairs<const D: usize>(
+    method: &dyn Method,
+    pairs: &mut Vec<ContactPair<D>>,
+    surface: &ContactSurface<D>,
+    offsets: &[usize],
+) where
     Dim<D>: SpatialDim<D>,
 {
-    /// The detected pairs the method holds. Between two bodies, the penalty methods keep both
-    /// passes (each body's nodes against the other's facets, at half the contact area each:
-    /// the same total stiffness on matching faces, and no corner of either body left
-    /// unchecked); the projections keep one pass (the nodes of the body listed first are
-    /// slaves) so that no constraint is duplicated; within a fold, of two pairs that hold each
-    /// other's slave (`one_pass_self_contact`), the one with the smaller slave. The
-    /// end-of-step projection moves the same pairs that Newton held: moving a dropped pair
-    /// too (a fold's corner measured against the other side's end vertex) strained the tip
-    /// out of what Newton solved and put energy in.
-    pub(super) fn held_pairs(&self, method: &dyn Method, pairs: &mut Vec<ContactPair<D>>) {
-        if method.symmetric_pairs() {
-            return;
-        }
-        let Some(detector) = &self.caches.detector else {
-            return;
-        };
-        let surface = detector.surface();
-        let facet_body = surface.facet_body();
-        let offsets = &self.node_offsets;
-        pairs.retain(|p| match p.master {
-            Master::Facet(f) => {
-                let slave_body = offsets.partition_point(|&o| o <= p.slave) - 1;
-                facet_body[f] >= slave_body
-            }
-            Master::Obstacle(_) => true,
-        });
-        one_pass_self_contact(pairs, surface.facets(), facet_body, offsets);
+    if method.symmetric_pairs() || !method.in_newton() {
+        return;
     }
+    let facet_body = surface.facet_body();
+    pairs.retain(|p| match p.master {
+        Master::Facet(f) => {
+            let slave_body = offsets.partition_point(|&o| o <= p.slave) - 1;
+            facet_body[f] >= slave_body
+        }
+        Master::Obstacle(_) => true,
+    });
+    one_pass_self_contact(pairs, surface.facets(), facet_body, offsets);
 }
 
 /// Takes back half of the last Newton increment (backtracking).
@@ -354,7 +352,7 @@ where
                 );
                 candidates = detector.candidates().len();
                 let mut pairs = detector.pairs(&x_gap, &start.obstacles_t1);
-                self.held_pairs(method, &mut pairs);
+                held_pairs(method, &mut pairs, detector.surface(), &self.node_offsets);
                 if !vars.started {
                     let penetrating: Vec<ContactKey> = pairs
                         .iter()

@@ -6,7 +6,7 @@
 
 use nalgebra::SVector;
 
-use super::newton::{Solution, StepStart};
+use super::newton::{held_pairs, Solution, StepStart};
 use super::observe::{NullRecorder, Recorder};
 use super::{end_positions, invalid, Simulation, StepReport};
 use crate::assembly;
@@ -336,10 +336,7 @@ where
                     &start.obstacles_t1,
                 );
                 let mut pairs = detector.pairs(&x_end, &start.obstacles_t1);
-                let facets = detector.surface().facets().to_vec();
-                if method.in_newton() {
-                    self.held_pairs(method, &mut pairs);
-                }
+                held_pairs(method, &mut pairs, detector.surface(), &self.node_offsets);
                 let (u_before, v_before) = (u1.clone(), v1.clone());
                 let mut impulses = vec![vec![0.0; D]; self.model.obstacles.len()];
                 // Projected on the gaps' positions; the configuration moves with them.
@@ -347,6 +344,7 @@ where
                 if rule == EndProjection::Active
                     && self.model.contact.projection == ProjectionMetric::Step
                 {
+                    let facets = detector.surface().facets().to_vec();
                     // Twice: the first correction can bring neighbours of the contact
                     // patch into the master.
                     let mut pairs = pairs;
@@ -362,7 +360,7 @@ where
                                 &start.obstacles_t1,
                             );
                             pairs = detector.pairs(&x_end, &start.obstacles_t1);
-                            self.held_pairs(method, &mut pairs);
+                            held_pairs(method, &mut pairs, detector.surface(), &self.node_offsets);
                         }
                         let du = self.weighted_projection(&pairs, &facets, &x_end, h, step)?;
                         for (g, d) in gap_u1.iter_mut().zip(&du) {
