@@ -90,8 +90,7 @@ pub enum Error {
     /// Newton (with the contact iterations) did not converge, even after cutting the step.
     #[error(
         "no convergence at step {step} (t = {time:.6e} s) after {iterations} iterations: \
-         relative residual {residual:.3e} > tolerance {tolerance:.1e}; try a smaller time_step \
-         or a larger max_iterations"
+         relative residual {residual:.3e} (tolerance {tolerance:.1e}); {cause}"
     )]
     NotConverged {
         /// Step number (1-based).
@@ -104,13 +103,12 @@ pub enum Error {
         residual: f64,
         /// The tolerance asked for.
         tolerance: f64,
+        /// Why it stopped and what to try: iterations spent, a contact set that cycles, or
+        /// contact passes that did not settle.
+        cause: String,
     },
     /// The energy grew without bound or a value became non-finite.
-    #[error(
-        "numerical instability at step {step} (t = {time:.6e} s): {detail}; \
-         use alpha >= sqrt(2)/2 ~ 0.7071 with beta in [1 - alpha, alpha^2 - alpha + 1/2] \
-         (the unconditionally stable window), or a smaller time_step"
-    )]
+    #[error("numerical instability at step {step} (t = {time:.6e} s): {detail}; {advice}")]
     Unstable {
         /// Step number (1-based).
         step: usize,
@@ -118,6 +116,10 @@ pub enum Error {
         time: f64,
         /// The energy growth or the non-finite quantity.
         detail: String,
+        /// What to change: the scheme's alpha and beta when they are outside the
+        /// unconditionally stable window, otherwise the step, the penalty or the scene's
+        /// magnitudes.
+        advice: String,
     },
     /// The run created energy: kinetic + internal + contact energy plus the dissipated energy
     /// exceeded the input (E(0) + |external work|) by more than

@@ -275,9 +275,8 @@ where
         plain(s.scheme.alpha),
         plain(s.scheme.beta)
     );
-    let mut unknowns = 0.0;
+    let (unknowns, triplets) = scene::scene_size(&scene.bodies);
     for (b, body) in scene.bodies.iter().enumerate() {
-        unknowns += (body.mesh.node_count() * D) as f64;
         outln!(
             "  body `{}`: {} nodes, {} cells, mass {:.6e} {}, {} constraint(s)",
             body.name,
@@ -302,7 +301,7 @@ where
     outln!(
         "  estimate: {unknowns:.0} unknowns, at least {:.1e} bytes of matrices (this machine: \
          {:.1e} bytes)",
-        scene::memory_lower_bound(unknowns, D),
+        scene::memory_lower_bound(unknowns, triplets, D),
         scene::memory_limit()
     );
     for o in &scene.obstacles {

@@ -31,7 +31,7 @@ use super::atomic::write_atomic;
 use super::scene::{OutputOptions, Probe, Scene};
 use crate::dim::{Dim, SpatialDim};
 use crate::error::{Error, Result};
-use crate::simulation::{Model, State};
+use crate::simulation::{Model, RunMonitor, State};
 
 /// The format version this softway writes and reads.
 pub const FORMAT: u32 = 1;
@@ -88,6 +88,11 @@ pub struct RunRecord {
     pub history: String,
     /// The `.pvd` entries so far: (time, part, file relative to the output folder).
     pub pvd: Vec<(f64, usize, String)>,
+    /// The run's monitor (energy created since the run's start, penetration, cuts, cycles).
+    /// Absent in checkpoints written before it was stored: the resumed run's monitor then
+    /// starts at the checkpoint.
+    #[serde(default)]
+    pub monitor: Option<RunMonitor>,
 }
 
 /// A checkpoint of either dimension, as read from a file.

@@ -15,6 +15,7 @@ use super::checkpoint::{self, Checkpoint, RunRecord};
 use super::scene::Scene;
 use super::vtk::{self, VtkCellKind, VtkField, VtkPiece};
 use crate::assembly::von_mises;
+use crate::contact::ContactMethod;
 use crate::dim::{Dim, SpatialDim};
 use crate::element::ElementKind;
 use crate::error::{Error, Result};
@@ -356,6 +357,8 @@ struct Carried {
     pvd: Vec<(f64, usize, String)>,
     /// Wall-clock seconds of earlier sessions (a resumed run's).
     wall_before: f64,
+    /// Energy created since the run's start, penetration, cuts, cycles.
+    monitor: RunMonitor,
 }
 
 /// Runs a validated scene to its end time, writing the outputs into `out` (created if
@@ -451,6 +454,7 @@ where
         turned: vec![0.0; scene.bodies.len()],
         pvd: Vec::new(),
         wall_before: 0.0,
+        monitor: RunMonitor::new(&sim),
     };
     if vtk_on {
         write_frame(&sim, out, stem, &mut carried.pvd, &[]).map_err(fail)?;
@@ -530,6 +534,7 @@ where
         turned: run.turned,
         pvd,
         wall_before: run.wall_seconds,
+        monitor: run.monitor.unwrap_or_else(|| RunMonitor::new(&sim)),
     };
     drive(
         &scene, &stem, sim, out, history, carried, options, progress, recorder, start,
@@ -584,6 +589,7 @@ where
         turned: carried.turned.clone(),
         history: history.text.clone().unwrap_or_default(),
         pvd: carried.pvd.clone(),
+        monitor: Some(carried.monitor.clone()),
     };
     let ckpt = Checkpoint::of_scene(scene, stem, sim.model().clone(), sim.state().clone(), run);
     let step = sim.state().step;
@@ -615,8 +621,6 @@ where
     let mut error = None;
     let mut interrupted = false;
     let mut checkpointed = None;
-    // A resumed run's monitor starts at the checkpoint (its warnings count from there).
-    let mut monitor = RunMonitor::new(&sim);
     // Bounded by construction: the scene's step count (at most MAX_STEPS, checked at load)
     // and one more, whatever the round-off of the times.
     let budget = super::scene::step_count(end, h).min(super::scene::MAX_STEPS) as usize + 1;
@@ -643,7 +647,7 @@ where
             }
         };
         let summary = &mut carried.summary;
-        match monitor.step(&sim, &report) {
+        match carried.monitor.step(&sim, &report) {
             Ok(Some(news)) => recorder.log(&sim, &format!("warning: {news}")),
             Ok(None) => {}
             Err(e) => {
@@ -727,14 +731,27 @@ where
             ));
         }
     }
-    summary.warnings.extend(monitor.warnings());
+    summary.warnings.extend(carried.monitor.warnings());
     // Booked energy growth closes the account, so energy_drift cannot show it: say it here.
     if e.dissipated < -1e-9 * reference {
+        let method = scene.contact.method;
+        let cause = match method {
+            ContactMethod::ExplicitProjection | ContactMethod::ImplicitProjection => format!(
+                "{}'s end-of-step projection moves nodes onto their masters and can put energy \
+                 in",
+                method.name()
+            ),
+            _ => format!(
+                "{}: a contact or material term booked energy in",
+                method.name()
+            ),
+        };
         summary.warnings.push(format!(
-            "the run created {:.4} J: dissipated_energy is negative, and energy_drift does not \
-             count what the account books (explicit_projection's end-of-step correction can put \
-             energy in)",
-            -e.dissipated
+            "the run created {:.4} J ({:.2e} of the input E(0) + |external work|): \
+             dissipated_energy is negative, and energy_drift does not count what the account \
+             books ({cause})",
+            -e.dissipated,
+            -e.dissipated / reference
         ));
     }
     if let Some(err) = &error {

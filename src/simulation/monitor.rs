@@ -5,6 +5,8 @@
 
 use std::fmt;
 
+use serde::{Deserialize, Serialize};
+
 use super::{Energies, Simulation, StepReport};
 use crate::contact::ContactMethod;
 use crate::dim::{Dim, SpatialDim};
@@ -110,8 +112,9 @@ where
 /// [`ENERGY_FAILURE`]), penetrations deeper than a tenth of the mean boundary facet, steps
 /// that had to be cut, and steps in which implicit projection's contact set cycled
 /// ([`StepReport::held_contacts`], [`StepReport::contact_cycles`]). [`RunMonitor::warnings`]
-/// says what it saw, for the summary.
-#[derive(Debug, Clone)]
+/// says what it saw, for the summary. A checkpoint stores it, so that a resumed run measures
+/// from the run's start and stops where the uninterrupted one stops.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 // The unit tests build one field by field; a monitor of zeros means nothing to a caller.
 #[cfg_attr(test, derive(Default))]
 pub struct RunMonitor {

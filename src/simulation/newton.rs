@@ -128,6 +128,41 @@ const COUPLED_SOLVE: bool = false;
 /// in, solution out.
 type SymmetricSolve<'a> = dyn FnMut(&[f64], f64) -> Result<Vec<f64>> + 'a;
 
+/// Why a step's Newton iteration stopped short of its tolerance (for the message).
+#[derive(Clone, Copy)]
+enum Stall {
+    /// `max_iterations` spent.
+    Iterations,
+    /// Implicit projection's active set came back with no point left to hold.
+    ContactCycle,
+    /// `max_passes` contact passes (multiplier or active-set updates) without settling.
+    ContactPasses,
+}
+
+impl Stall {
+    /// The cause and the advice; the error reaches the user after the step was retried with
+    /// the line search and cut in halves.
+    fn cause(self, max_iterations: usize, max_passes: usize) -> String {
+        let retried = "the step was retried with a line search and cut in halves without success";
+        match self {
+            Stall::Iterations => format!(
+                "max_iterations = {max_iterations} spent; {retried}: try a smaller time_step, \
+                 or a larger max_iterations only if the residual was still falling (the Rerun \
+                 recording shows it, `--rerun FILE.rrd`)"
+            ),
+            Stall::ContactCycle => format!(
+                "implicit projection's contact set cycles (an active set came back with no \
+                 point left to hold), not a residual above the tolerance; {retried}: try a \
+                 smaller time_step, or contact.method = \"soft_way\""
+            ),
+            Stall::ContactPasses => format!(
+                "the contact passes did not settle in {max_passes} passes; {retried}: try a \
+                 smaller time_step (library: a larger ContactSettings::max_passes)"
+            ),
+        }
+    }
+}
+
 /// Solves `(S + sum u v^T) x = b`, `S` the symmetric part of the iteration matrix (solved by
 /// `solve`, to a residual target) and `u v^T` the non-symmetric rank-one terms of the tangent
 /// (Coulomb slip's threshold coupled to the gap; a held normal velocity whose normal turns), by
@@ -279,12 +314,15 @@ where
         let diagonal = self.system_diagonal().to_vec();
         let frictional = self.frictional();
         let tolerance = self.model.settings.tolerance;
-        let not_converged = |iterations: usize, residual: f64| Error::NotConverged {
+        let max_iterations = self.model.settings.max_iterations;
+        let max_passes = self.model.contact.max_passes;
+        let not_converged = |iterations: usize, residual: f64, why: Stall| Error::NotConverged {
             step,
             time: t0,
             iterations,
             residual,
             tolerance,
+            cause: why.cause(max_iterations, max_passes),
         };
 
         let mut friction_normals: BTreeMap<ContactKey, f64> = self
@@ -484,6 +522,7 @@ where
                     step,
                     time: t0 + h,
                     detail: "the residual became non-finite".into(),
+                    advice: self.instability_advice(true),
                 });
             }
             // Backtracking: contact and friction are not smooth, and a full Newton step can
@@ -544,7 +583,9 @@ where
                 let mut done = match outcome {
                     OuterUpdate::Converged => true,
                     OuterUpdate::Again => false,
-                    OuterUpdate::Cycle => return Err(not_converged(iterations, rel)),
+                    OuterUpdate::Cycle => {
+                        return Err(not_converged(iterations, rel, Stall::ContactCycle))
+                    }
                 };
                 if done
                     && frictional
@@ -589,12 +630,12 @@ where
                 last_increment.clear();
                 line = None;
                 if passes > self.model.contact.max_passes {
-                    return Err(not_converged(iterations, rel));
+                    return Err(not_converged(iterations, rel, Stall::ContactPasses));
                 }
                 continue;
             }
             if iterations >= self.model.settings.max_iterations {
-                return Err(not_converged(iterations, rel));
+                return Err(not_converged(iterations, rel, Stall::Iterations));
             }
             let mut increment: Vec<f64> = residual
                 .iter()

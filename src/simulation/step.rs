@@ -12,7 +12,7 @@ use super::{end_positions, invalid, Simulation, StepReport};
 use crate::assembly;
 use crate::contact::methods::projection::{project, Applied, ProjectionContext};
 use crate::contact::methods::{self, EndProjection, Method};
-use crate::contact::{GapDisplacement, Master, ProjectionMetric};
+use crate::contact::{ContactMethod, GapDisplacement, Master, ProjectionMetric};
 use crate::dim::{Dim, SpatialDim};
 use crate::error::{Error, Result};
 use crate::time::SpaceTimeScheme;
@@ -24,6 +24,54 @@ impl<const D: usize> Simulation<D>
 where
     Dim<D>: SpatialDim<D>,
 {
+    /// What to change after an instability. Outside the scheme's unconditionally stable
+    /// window, alpha and beta; inside it the scheme is not the cause, so the advice names
+    /// what is: a penalty too stiff for the step, an overlap at the start, or magnitudes out
+    /// of range.
+    pub(super) fn instability_advice(&self, non_finite: bool) -> String {
+        let scheme = self.model.settings.scheme;
+        if !scheme.is_unconditionally_stable() {
+            return format!(
+                "alpha = {}, beta = {} lie outside the unconditionally stable window: use alpha \
+                 >= sqrt(2)/2 ~ 0.7071 with beta in [1 - alpha, alpha^2 - alpha + 1/2], or a \
+                 smaller time_step",
+                scheme.alpha, scheme.beta
+            );
+        }
+        let contact = if self.caches.detector.is_none() {
+            ""
+        } else {
+            match self.model.contact.method {
+                ContactMethod::SoftWay | ContactMethod::AugmentedLagrangian => {
+                    "a contact penalty too stiff for the time step (use a smaller time_step or \
+                     penalty, or implicit_projection), "
+                }
+                ContactMethod::ExplicitProjection => {
+                    "explicit_projection's end-of-step correction (use implicit_projection, or a \
+                     smaller time_step), "
+                }
+                ContactMethod::ImplicitProjection => "",
+            }
+        };
+        let magnitudes = "magnitudes out of range (the scene's velocities, densities, moduli, \
+                          penalties and loads)";
+        if non_finite {
+            // A value left the floating-point range: the scene's numbers come first.
+            return format!(
+                "the time scheme (alpha = {}, beta = {}) is unconditionally stable: look first \
+                 for {magnitudes}, then {contact}bodies that overlap at the start (softway \
+                 check reports them)",
+                scheme.alpha, scheme.beta
+            );
+        }
+        format!(
+            "the time scheme (alpha = {}, beta = {}) is unconditionally stable, so look \
+             elsewhere: {contact}bodies that overlap at the start (softway check reports them), \
+             or {magnitudes}",
+            scheme.alpha, scheme.beta
+        )
+    }
+
     /// One step of the configured size.
     pub fn step(&mut self) -> Result<StepReport> {
         let h = self.model.settings.time_step;
@@ -557,6 +605,7 @@ where
                 step,
                 time: t0 + h,
                 detail,
+                advice: self.instability_advice(!finite || !energies.total().is_finite()),
             });
         }
         self.log_contacts(&terms.pairs, &terms.forces);

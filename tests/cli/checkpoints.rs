@@ -288,6 +288,50 @@ fn checkpoints_change_nothing_and_resume_bit_for_bit() {
     );
 }
 
+/// The run's monitor is in the checkpoint: a resumed run measures the energy created from the
+/// run's start, so it stops where the uninterrupted run stops, with the same history and
+/// warnings. (It measured from the checkpoint before: the audit's explicit-projection stack
+/// stopped at step 89, resumed from step 80 it ran to step 170.) The ring drop with zeta =
+/// 1e16 creates energy: a warning, then exit 3 a few steps later.
+#[test]
+fn a_resumed_run_stops_where_the_uninterrupted_run_stops() {
+    let dir = scratch("monitor");
+    let stiff = ["--set", "contact.penalty=1e16", "--checkpoint-every", "10"];
+    let out = dir.join("out");
+    let o = softway().args(run_args(&out, &stiff)).output().unwrap();
+    assert_eq!(o.status.code(), Some(3), "{}", stderr(&o));
+    let s = summary(&out);
+    assert_eq!(s["status"], "failed");
+    let stopped = s["steps"].as_u64().unwrap() as usize;
+    assert!(stopped > 20 && stopped < STEPS, "stopped at step {stopped}");
+    let warned: Vec<Value> = s["warnings"].as_array().unwrap().clone();
+    assert!(
+        warned
+            .iter()
+            .any(|w| w.as_str().unwrap().contains("created energy")),
+        "{warned:?}"
+    );
+    // From the last checkpoint before the stop and from one well before it.
+    let last = stopped - 1 - (stopped - 1) % 10;
+    for from in [last, last - 20] {
+        let again = dir.join(format!("from_{from}"));
+        let o = resume(
+            &out.join(format!("checkpoints/step_{from}.ckpt")),
+            &["--out", again.to_str().unwrap()],
+        );
+        assert_eq!(o.status.code(), Some(3), "from step {from}: {}", stderr(&o));
+        assert_eq!(history_text(&again), history_text(&out), "from step {from}");
+        let r = summary(&again);
+        assert_eq!(r["steps"], s["steps"], "from step {from}");
+        assert_eq!(r["error"], s["error"], "from step {from}");
+        assert_eq!(
+            r["warnings"].as_array().unwrap(),
+            &warned,
+            "from step {from}"
+        );
+    }
+}
+
 fn copy_dir(from: &Path, to: &Path) {
     fs::create_dir_all(to).unwrap();
     for entry in fs::read_dir(from).unwrap() {
@@ -346,6 +390,31 @@ fn sigterm_is_an_interrupt_too() {
     assert_eq!(o.status.code(), Some(143), "{}", stderr(&o));
     assert_eq!(summary(&out)["status"], "interrupted");
     assert_complete_or_absent(&out);
+}
+
+/// A second SIGINT exits at once (status 130) instead of finishing the step and writing the
+/// summary: whether the first one had time to write it depends on the race, but every file the
+/// run leaves is complete or absent, and it ends within seconds.
+#[test]
+fn a_second_sigint_exits_at_once() {
+    let dir = scratch("sigint_twice");
+    let out = dir.join("out");
+    let args = run_args(&out, &["--checkpoint-every", "10", "--rerun", "run.rrd"]);
+    let child = spawn_until(&args, &dir, &out.join("checkpoints/step_20.ckpt"));
+    let sent = Instant::now();
+    signal(&child, "INT");
+    signal(&child, "INT");
+    let o = child.wait_with_output().unwrap();
+    assert_eq!(o.status.code(), Some(130), "{}", stderr(&o));
+    assert!(
+        sent.elapsed() < Duration::from_secs(10),
+        "{:?}",
+        sent.elapsed()
+    );
+    assert_complete_or_absent(&out);
+    if out.join("summary.json").exists() {
+        assert_eq!(summary(&out)["status"], "interrupted");
+    }
 }
 
 #[test]

@@ -7,10 +7,13 @@
 //! `support.rs`: running the binary and checking messages; `invalid_input.rs`: bad scenes
 //! (exit status 2); `valid_runs.rs`: runs, their outputs, `--set`, instability (exit status 3);
 //! `checkpoints.rs`: checkpoints, `resume`, interrupts and atomic outputs;
-//! `reliability.rs`: issue 14 (runs that end, limits, overlaps, messages, monitors).
+//! `reliability.rs`: issue 14 (runs that end, limits, overlaps, messages, monitors);
+//! `messages.rs`: issue 14's messages (no type names, advice that fits the case, the memory
+//! estimate).
 
 mod checkpoints;
 mod invalid_input;
+mod messages;
 mod reliability;
 mod support;
 mod valid_runs;

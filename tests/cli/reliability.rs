@@ -13,7 +13,7 @@ use super::support::*;
 
 /// A block above a polyline floor (drawn right to left: solid below).
 /// [`BLOCK`] in 3D, with its mesh and obstacle replaced (TOML inline tables).
-fn block_3d(mesh: &str, obstacle: &str) -> String {
+pub(super) fn block_3d(mesh: &str, obstacle: &str) -> String {
     BLOCK
         .replace("dimension = 2", "dimension = 3")
         .replace("gravity = [0.0, -9.81]", "")
@@ -27,7 +27,7 @@ fn block_3d(mesh: &str, obstacle: &str) -> String {
         )
 }
 
-const BLOCK: &str = r#"[simulation]
+pub(super) const BLOCK: &str = r#"[simulation]
 dimension = 2
 time_step = 1.0e-3
 end_time = 0.01
@@ -69,7 +69,7 @@ shape = { type = "halfspace", point = [0.0, 0.0], normal = [0.0, 1.0] }
 
 /// Writes `text` as a scene in a folder of its own (kept while the first value lives), so
 /// that the working folder of a run stays empty when nothing may be written.
-fn scene(text: &str) -> (tempfile::TempDir, PathBuf) {
+pub(super) fn scene(text: &str) -> (tempfile::TempDir, PathBuf) {
     let dir = tempdir();
     let path = dir.path().join("scene.toml");
     fs::write(&path, text).unwrap();
@@ -135,8 +135,9 @@ fn polyline_vertex_at_minus_1e200_ends() {
     assert_eq!(
         error_line(&o),
         format!(
-            "error: {}: line 18: `obstacles.0.shape.indices.0`: found [0, 1]: a segment of length \
-             inf, expected a segment of finite, positive length",
+            "error: {}: line 18: `obstacles.0.shape.indices.0`: found [0, 1]: a segment whose \
+             length overflows (coordinates beyond about 1e154 m), expected a segment of finite, \
+             positive length",
             file.display()
         )
     );
@@ -200,7 +201,7 @@ fn generator_just_under_the_cell_cap_is_refused_with_a_memory_estimate() {
     let err = assert_invalid(dir.path(), &["check", file.to_str().unwrap()]);
     let expected = format!(
         "error: {}: line 13: `bodies.0.mesh.cells`: found [464, 464, 464]: 1.0e8 nodes, 3.0e8 \
-         unknowns, at least 3.3e11 bytes (310 GiB) of matrices, expected a mesh whose matrices \
+         unknowns, at least 1.1e12 bytes (980 GiB) of matrices, expected a mesh whose matrices \
          fit in this machine's ",
         file.display()
     );

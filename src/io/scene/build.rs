@@ -39,6 +39,7 @@ impl LoadedScene {
         for (b, spec) in self.file.bodies.iter().enumerate() {
             bodies.push(self.body::<D>(b, spec, settings.kinematics)?);
         }
+        self.check_memory(&bodies)?;
         let mut obstacles = Vec::new();
         for (o, spec) in self.file.obstacles.iter().enumerate() {
             obstacles.push(self.obstacle::<D>(o, spec)?);
@@ -54,6 +55,34 @@ impl LoadedScene {
             output,
             contact,
         })
+    }
+
+    /// The whole scene's memory lower bound against the machine's (see `limits`): every body,
+    /// Gmsh meshes too, before the simulation allocates its matrices.
+    fn check_memory<const D: usize>(&self, bodies: &[Body<D>]) -> Result<()>
+    where
+        Dim<D>: SpatialDim<D>,
+    {
+        let (unknowns, triplets) = scene_size(bodies);
+        let needed = super::memory_lower_bound(unknowns, triplets, D);
+        let limit = super::memory_limit();
+        if needed <= limit {
+            return Ok(());
+        }
+        let cells: usize = bodies.iter().map(|b| b.mesh.cell_count()).sum();
+        Err(self.error(
+            "bodies",
+            format!(
+                "{} bodies of {cells} cells in all: {unknowns:.1e} unknowns, at least {} of \
+                 matrices",
+                bodies.len(),
+                super::limits::bytes(needed)
+            ),
+            format!(
+                "a scene whose matrices fit in this machine's {} of memory (fewer cells)",
+                super::limits::bytes(limit)
+            ),
+        ))
     }
 
     /// `[[probes]]`: unique names, the body by name, the nearest node to the point.
@@ -703,4 +732,25 @@ impl LoadedScene {
             Err(self.error(key, v, format!("a finite value > 0 [{unit}]")))
         }
     }
+}
+
+/// The unknowns of `bodies` and the entries of their cell matrices' lower triangles (the
+/// sizes [`super::memory_lower_bound`] takes).
+pub fn scene_size<const D: usize>(bodies: &[Body<D>]) -> (f64, f64)
+where
+    Dim<D>: SpatialDim<D>,
+{
+    let unknowns = bodies
+        .iter()
+        .map(|b| (b.mesh.node_count() * D) as f64)
+        .sum();
+    let triplets = bodies
+        .iter()
+        .flat_map(|b| &b.mesh.blocks)
+        .map(|block| {
+            let nodes = block.kind.nodes();
+            (block.connectivity.len() / nodes) as f64 * super::cell_triplets(nodes, D)
+        })
+        .sum();
+    (unknowns, triplets)
 }

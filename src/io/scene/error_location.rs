@@ -131,10 +131,27 @@ pub(super) fn split_serde_message(msg: &str) -> (String, String) {
             "a boolean" | "bool" => "true or false",
             // serde's name of a Rust type (`struct SimulationSection`): a table to the user.
             other if other.starts_with("struct ") => "a table of keys",
+            // The tagged tables (`friction`, `material`, `shape`): what the tag key is.
+            "internally tagged enum FrictionSpec" => {
+                "a table naming its law, e.g. { law = \"coulomb\", coefficient = 0.3 }"
+            }
+            "internally tagged enum MaterialSpec" => {
+                "a table naming its model, e.g. { model = \"linear_elastic\", youngs_modulus = \
+                 1e6, poissons_ratio = 0.3, density = 1000.0 }"
+            }
+            "internally tagged enum ShapeSpec" => {
+                "a table naming its type, e.g. { type = \"halfspace\", point = [0.0, 0.0], \
+                 normal = [0.0, 1.0] }"
+            }
+            other if other.starts_with("internally tagged enum ") => {
+                "a table with its documented keys"
+            }
+            // The tag's value (`law = 3`): a name.
+            "variant identifier" => "one of the documented names, as a string",
             other if other.starts_with("enum ") => "one of the documented values",
             other => other,
         };
-        return (found.to_string(), expected.to_string());
+        return (readable_number(found), expected.to_string());
     }
     if let Some(rest) = msg.strip_prefix("missing field ") {
         return ("nothing".into(), format!("the required key {rest}"));
@@ -143,6 +160,21 @@ pub(super) fn split_serde_message(msg: &str) -> (String, String) {
         msg.to_string(),
         "a value of the documented type (see scene-format.md)".into(),
     )
+}
+
+/// serde prints a float in full (`floating point `1000...0.0``, 309 digits for 1e308): in
+/// scientific notation past 12 significant characters.
+fn readable_number(found: &str) -> String {
+    let Some(digits) = found
+        .strip_prefix("floating point `")
+        .and_then(|r| r.strip_suffix('`'))
+    else {
+        return found.to_string();
+    };
+    match digits.parse::<f64>() {
+        Ok(x) if digits.len() > 12 => format!("floating point `{x:e}`"),
+        _ => found.to_string(),
+    }
 }
 
 /// The 1-based line where a dotted key (or its deepest existing parent) is defined.

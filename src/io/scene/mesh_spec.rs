@@ -36,7 +36,8 @@ impl LoadedScene {
         // least memory their matrices take (see `limits`).
         let nodes: f64 = c.iter().map(|&n| n as f64 + 1.0).product();
         let unknowns = nodes * N as f64;
-        let needed = super::memory_lower_bound(unknowns, N);
+        let triplets = total.unwrap_or(0) as f64 * super::limits::grid_cell_triplets(N);
+        let needed = super::memory_lower_bound(unknowns, triplets, N);
         let limit = super::memory_limit();
         if needed > limit {
             return Err(self.error(

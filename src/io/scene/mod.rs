@@ -29,11 +29,13 @@ use crate::contact::{ContactSettings, Obstacle};
 use crate::dim::{Dim, SpatialDim};
 use crate::error::{Error, Result};
 use crate::simulation::{Body, Settings};
+pub use build::scene_size;
 use error_location::{
     line_of, refine_key, scene_path, split_serde_message, untagged_expectation, value_at,
 };
 pub use limits::{
-    memory_limit, memory_lower_bound, plain, step_count, DEFAULT_MEMORY_LIMIT, MAX_STEPS,
+    cell_triplets, memory_limit, memory_lower_bound, plain, step_count, DEFAULT_MEMORY_LIMIT,
+    MAX_STEPS,
 };
 use overrides::apply_override;
 

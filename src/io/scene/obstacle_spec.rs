@@ -192,9 +192,18 @@ impl LoadedScene {
                         } else {
                             ("triangle", "area")
                         };
+                        let found = if measure.is_finite() {
+                            format!("{f:?}: a {shape} of {size} {}", super::plain(measure))
+                        } else {
+                            // 1e200 m is finite; its square, which the measure takes, is not.
+                            format!(
+                                "{f:?}: a {shape} whose {size} overflows (coordinates beyond \
+                                 about 1e154 m)"
+                            )
+                        };
                         return Err(self.error(
                             &format!("{key}.indices.{i}"),
-                            format!("{f:?}: a {shape} of {size} {}", super::plain(measure)),
+                            found,
                             format!("a {shape} of finite, positive {size}"),
                         ));
                     }
