@@ -5,7 +5,7 @@
 //! jaws' contact forces through the API and checks that their vertical friction carries the
 //! block's weight, and that the block follows the jaws.
 //!
-//! Run: `cargo run --example gripper [-- --end-time 0.5] [--rerun gripper.rrd]` (2D, 0.5 s,
+//! Run: `cargo run --example gripper [-- [--end-time 0.5] [--rerun gripper.rrd]]` (2D, 0.5 s,
 //! default scheme and contact method; `--rerun` needs the `rerun` feature, on by default, and
 //! records every iteration with the jaws drawn where the host puts them; view the file with
 //! `rerun gripper.rrd`). Its tests: `cargo test --example gripper`.

@@ -1,9 +1,13 @@
-//! The one place where 2D and 3D differ.
+//! Where 2D and 3D differ.
 //!
 //! Everything in softway is generic over `const D: usize` with the single bound
 //! `where Dim<D>: SpatialDim<D>`. Determinants, inverses, facet normals, the embedding of a
 //! D-dimensional gradient in the 3D strain of the material law, angular velocities and
-//! rotations all live here, implemented for `Dim<2>` and `Dim<3>` only (the trait is sealed).
+//! rotations all live here, implemented for `Dim<2>` and `Dim<3>` only (the trait is sealed);
+//! the point-to-facet projection and the bounding-volume tree in its supertrait `GeometryDim`
+//! (`crate::geometry`). A few `D == 2` branches remain where a facet is a segment rather
+//! than a triangle (the contact areas, the barycentric weights, the free ends of polylines)
+//! and in the Rerun drawing.
 
 use nalgebra::{Matrix2, Matrix3, Rotation2, Rotation3, SMatrix, SVector, Vector2, Vector3};
 use serde::{Deserialize, Serialize};

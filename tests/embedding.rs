@@ -100,6 +100,19 @@ where
     let b = sim.add_body(cube("b", 0.3, 0.002)).unwrap();
     assert_ne!(a, b);
     assert_eq!(sim.body_ids(), vec![a, b]);
+    // Per-body cell fields are the bodies' parts of the whole list, in order.
+    sim.step().unwrap();
+    let (sa, sb) = (
+        sim.body_cell_stresses(a).unwrap(),
+        sim.body_cell_stresses(b).unwrap(),
+    );
+    assert!(!sa.is_empty() && !sb.is_empty());
+    assert_eq!([sa, sb].concat(), sim.cell_stresses());
+    let strains = [
+        sim.body_cell_equivalent_strains(a).unwrap(),
+        sim.body_cell_equivalent_strains(b).unwrap(),
+    ];
+    assert_eq!(strains.concat(), sim.cell_equivalent_strains());
     sim.remove_body(a).unwrap();
     for result in [
         sim.position(a, 0).err(),
@@ -109,6 +122,8 @@ where
         sim.remove_body(a).err(),
         sim.set_gravity_scale(a, 0.0).err(),
         sim.body_positions(BodyId::initial(7)).err(),
+        sim.body_cell_stresses(a).err(),
+        sim.body_cell_equivalent_strains(BodyId::initial(7)).err(),
     ] {
         let e = result.expect("a stale or forged handle is refused");
         assert!(matches!(e, Error::InvalidHandle(_)), "{e}");

@@ -1,8 +1,9 @@
 //! Fields per cell for outputs and hosts: the mean stress and the equivalent strain.
 
-use super::Simulation;
+use super::{BodyId, Simulation};
 use crate::assembly;
-use crate::dim::{Dim, SpatialDim};
+use crate::dim::{Dim, SpatialDim, Voigt};
+use crate::error::Result;
 
 impl<const D: usize> Simulation<D>
 where
@@ -24,7 +25,7 @@ where
     }
 
     /// Average Voigt stress of every cell, bodies in order (Pa).
-    pub fn cell_stresses(&self) -> Vec<crate::dim::Voigt> {
+    pub fn cell_stresses(&self) -> Vec<Voigt> {
         assembly::cell_stresses::<D>(
             &self.table,
             &self.reference,
@@ -32,5 +33,29 @@ where
             &self.state.displacement,
             &self.state.material_history,
         )
+    }
+
+    /// The cells of `body` in [`Simulation::cell_stresses`]'s order (their indices there,
+    /// the body's cells in its mesh's order); an error for a stale or forged handle.
+    fn body_cells(&self, body: BodyId) -> Result<std::ops::Range<usize>> {
+        let b = self.body_index(body)?;
+        let start = self.model.bodies[..b]
+            .iter()
+            .map(|x| x.mesh.cell_count())
+            .sum();
+        Ok(start..start + self.model.bodies[b].mesh.cell_count())
+    }
+
+    /// Average Voigt stress (Pa) of each cell of one body, in its mesh's cell order.
+    pub fn body_cell_stresses(&self, body: BodyId) -> Result<Vec<Voigt>> {
+        let cells = self.body_cells(body)?;
+        Ok(self.cell_stresses()[cells].to_vec())
+    }
+
+    /// The equivalent logarithmic strain (see [`Simulation::cell_equivalent_strains`]) of
+    /// each cell of one body, in its mesh's cell order.
+    pub fn body_cell_equivalent_strains(&self, body: BodyId) -> Result<Vec<f64>> {
+        let cells = self.body_cells(body)?;
+        Ok(self.cell_equivalent_strains()[cells].to_vec())
     }
 }
