@@ -240,3 +240,18 @@ fn explicit_projection_on_a_falling_stack_stops_with_exit_3() {
         "{warnings:?}"
     );
 }
+
+/// A value of the file judged together with a sibling from `--set` names both: the file's
+/// line, and the override (it named the line alone, as if the file were wrong).
+#[test]
+fn a_file_value_judged_with_a_set_sibling_names_the_override() {
+    let (err, file) = set_error("obstacles.0.shape.vertices=[[-1e200, 0.0], [4.0, 0.0]]");
+    assert_eq!(
+        err,
+        format!(
+            "error: {file}: line 18 (with --set obstacles.0.shape.vertices): \
+             `obstacles.0.shape.indices.0`: found [0, 1]: a segment whose length overflows \
+             (coordinates beyond about 1e154 m), expected a segment of finite, positive length"
+        )
+    );
+}

@@ -150,9 +150,17 @@ impl LoadedScene {
         {
             return "--set: ".into();
         }
-        match line_of(&self.text, key) {
-            Some(line) => format!("line {line}: "),
-            None => String::new(),
+        // A value of the file judged with a sibling from --set (the indices of a polyline
+        // whose vertices were overridden): the line, and the override it was judged with.
+        let sibling = self.overridden.iter().find(|o| {
+            o.rsplit_once('.').is_some_and(|(parent, _)| {
+                parent.contains('.') && key.starts_with(&format!("{parent}."))
+            })
+        });
+        match (line_of(&self.text, key), sibling) {
+            (Some(line), Some(o)) => format!("line {line} (with --set {o}): "),
+            (Some(line), None) => format!("line {line}: "),
+            (None, _) => String::new(),
         }
     }
 
