@@ -421,6 +421,12 @@ fn folding_strip_with(overrides: &[&str]) {
         deepest_self < 7e-5,
         "a node {deepest_self} m inside the strip"
     );
+    // Implicit projection's velocity penalty (1e4 times the largest diagonal) leaves the
+    // contact matrices within reach of single precision: no factor failed its refinement.
+    assert!(
+        !sim.state().contact_memory.double_precision_only,
+        "a single-precision contact factor failed its refinement"
+    );
 }
 
 /// The whole tube crush under the default method, which the scene does not use: it stops at

@@ -119,6 +119,12 @@ where
         e.dissipated
     );
     assert!(slip.abs() < 1e-3, "slip {slip} m");
+    // Implicit projection's velocity penalty (1e4 times the largest diagonal) leaves the
+    // contact matrices within reach of single precision: no factor failed its refinement.
+    assert!(
+        !sim.state().contact_memory.double_precision_only,
+        "{method:?}: a single-precision contact factor failed its refinement"
+    );
 }
 
 mod d2 {

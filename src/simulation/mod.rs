@@ -373,6 +373,26 @@ where
                      would need its thickness as an unknown)",
                 ));
             }
+            let touches = !obstacles.is_empty() || bodies.len() > 1 || contact.self_contact;
+            if touches
+                && contact.method == crate::contact::ContactMethod::ImplicitProjection
+                && matches!(body.material, crate::material::Material::NortonHoff(_))
+                && body.material.density() == 0.0
+            {
+                // Its velocity penalty scales with the iteration matrix's diagonal, M / h plus
+                // the small-strain stiffness, both zero for a massless flow: the contact passes
+                // never settle (the octagon stopped at step 1 after 50 passes, residual 0).
+                return Err(invalid(
+                    "contact.method",
+                    format!(
+                        "implicit_projection with body `{}` a massless norton_hoff flow \
+                         (density 0; the method's velocity penalty scales with the mass and the \
+                         small-strain stiffness, both zero)",
+                        body.name
+                    ),
+                    "soft_way or augmented_lagrangian for a quasi-static flow, or a density > 0",
+                ));
+            }
             if settings.kinematics == Kinematics::Axisymmetric {
                 if let Some(n) = body.mesh.nodes.iter().position(|x| x[0] < -1e-12) {
                     return Err(Error::Mesh {

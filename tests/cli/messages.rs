@@ -255,3 +255,32 @@ fn a_file_value_judged_with_a_set_sibling_names_the_override() {
         )
     );
 }
+
+/// The paper's octagon (a massless Norton-Hoff flow) under implicit projection stopped at step 1
+/// with "no convergence ... after 0 iterations: relative residual 0.000e0": the method's
+/// velocity penalty scales with the mass and the small-strain stiffness, both zero. It is
+/// refused up front, naming the cause and the methods that work.
+#[test]
+fn implicit_projection_on_a_massless_flow_is_refused_up_front() {
+    let dir = tempdir();
+    let file = repo().join("fixtures/scenes/octagon_compression.toml");
+    let err = assert_invalid(
+        dir.path(),
+        &[
+            "check",
+            file.to_str().unwrap(),
+            "--set",
+            "contact.method=\"implicit_projection\"",
+        ],
+    );
+    assert_eq!(
+        err.trim_end(),
+        format!(
+            "error: {}: invalid parameter `contact.method`: found implicit_projection with body \
+             `billet` a massless norton_hoff flow (density 0; the method's velocity penalty \
+             scales with the mass and the small-strain stiffness, both zero), expected soft_way \
+             or augmented_lagrangian for a quasi-static flow, or a density > 0",
+            file.display()
+        )
+    );
+}
