@@ -14,6 +14,23 @@ fn set_error(set: &str) -> (String, String) {
     (err.trim_end().to_string(), file.display().to_string())
 }
 
+/// `run SCENE --quiet --out out --set ...` of the block, which must fail (exit 3): its stderr.
+fn failed_run(sets: &[&str]) -> String {
+    let dir = tempdir();
+    let (_scenes, file) = scene(BLOCK);
+    let mut args = vec!["run", file.to_str().unwrap(), "--quiet", "--out", "out"];
+    for s in sets {
+        args.extend(["--set", s]);
+    }
+    let o = softway()
+        .current_dir(dir.path())
+        .args(&args)
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(3), "{}", stderr(&o));
+    stderr(&o)
+}
+
 #[test]
 fn friction_set_to_a_number_names_no_tagged_enum() {
     let (err, file) = set_error("contact.friction=3");
@@ -77,23 +94,7 @@ fn dimension_1e308_is_printed_in_scientific_notation() {
 /// alpha (it said "use alpha >= sqrt(2)/2" whatever alpha was).
 #[test]
 fn instability_with_a_stable_scheme_blames_the_magnitudes_not_alpha() {
-    let dir = tempdir();
-    let (_scenes, file) = scene(BLOCK);
-    let o = softway()
-        .current_dir(dir.path())
-        .args([
-            "run",
-            file.to_str().unwrap(),
-            "--quiet",
-            "--out",
-            "out",
-            "--set",
-            "bodies.0.initial_velocity=[0.0, -1e308]",
-        ])
-        .output()
-        .unwrap();
-    assert_eq!(o.status.code(), Some(3), "{}", stderr(&o));
-    let err = stderr(&o);
+    let err = failed_run(&["bodies.0.initial_velocity=[0.0, -1e308]"]);
     assert!(
         err.starts_with(
             "error: numerical instability at step 1 (t = 1.000000e-3 s): the residual became \
@@ -111,25 +112,7 @@ fn instability_with_a_stable_scheme_blames_the_magnitudes_not_alpha() {
 /// where 500 iterations did not help).
 #[test]
 fn max_iterations_advice_says_when_it_helps() {
-    let dir = tempdir();
-    let (_scenes, file) = scene(BLOCK);
-    let o = softway()
-        .current_dir(dir.path())
-        .args([
-            "run",
-            file.to_str().unwrap(),
-            "--quiet",
-            "--out",
-            "out",
-            "--set",
-            "simulation.tolerance=1e-17",
-            "--set",
-            "simulation.max_iterations=1",
-        ])
-        .output()
-        .unwrap();
-    assert_eq!(o.status.code(), Some(3), "{}", stderr(&o));
-    let err = stderr(&o);
+    let err = failed_run(&["simulation.tolerance=1e-17", "simulation.max_iterations=1"]);
     let first = err.lines().next().unwrap();
     assert!(
         first.starts_with("error: no convergence at step 1 (t = 0.000000e0 s) after 1 iterations"),
