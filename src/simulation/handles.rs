@@ -68,6 +68,24 @@ impl Slots {
         self.slots.iter().filter(|s| s.position.is_some()).count()
     }
 
+    /// The positions the occupied slots hold, in slot order.
+    pub(crate) fn positions(&self) -> Vec<usize> {
+        self.slots.iter().filter_map(|s| s.position).collect()
+    }
+
+    /// Whether the occupied slots hold the positions `0..count`, each once (a table built
+    /// by hand, or deserialised, may not: lookups would then index out of range).
+    pub(crate) fn holds_positions(&self, count: usize) -> bool {
+        let mut seen = vec![false; count];
+        for p in self.slots.iter().filter_map(|s| s.position) {
+            match seen.get_mut(p) {
+                Some(s) if !*s => *s = true,
+                _ => return false,
+            }
+        }
+        seen.iter().all(|&s| s)
+    }
+
     fn resolve(&self, slot: u32, generation: u32) -> Option<usize> {
         self.slots
             .get(slot as usize)
@@ -416,5 +434,56 @@ where
             e[n * D] = 1.0;
         }
         crate::assembly::symmetric_dot(&self.matrices.mass, &e, &e)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::element::ElementKind;
+    use crate::material::{LinearElastic, Material};
+    use crate::mesh::generators::rectangle;
+    use crate::simulation::{Body, Simulation2};
+    use nalgebra::Vector2;
+
+    /// A slot table read from a file that points at a position the model does not have (or
+    /// twice at one) is refused by `set_state`, not a panic at the next lookup.
+    #[test]
+    fn a_state_with_forged_slots_is_refused() {
+        let table = |positions: &[Option<usize>]| Slots {
+            slots: positions
+                .iter()
+                .map(|&position| Slot {
+                    generation: 0,
+                    position,
+                })
+                .collect(),
+        };
+        assert!(table(&[Some(1), None, Some(0)]).holds_positions(2));
+        assert!(!table(&[Some(0), Some(5)]).holds_positions(2));
+        assert!(!table(&[Some(0), Some(0)]).holds_positions(2));
+        assert!(!table(&[Some(0)]).holds_positions(2));
+
+        let material = Material::LinearElastic(LinearElastic::new(1e6, 0.3, 1000.0).unwrap());
+        let mesh = rectangle(
+            Vector2::new(0.0, 0.0),
+            Vector2::new(1.0, 1.0),
+            [2, 2],
+            ElementKind::Quad4,
+        )
+        .unwrap();
+        let mut sim = Simulation2::builder()
+            .body(Body::new("a", mesh, material))
+            .build()
+            .unwrap();
+        let mut state = sim.state().clone();
+        state.body_slots = table(&[Some(3)]);
+        let e = sim.set_state(state).unwrap_err();
+        assert!(
+            e.to_string()
+                .contains("found slots at positions [3] (bodies) and [] (obstacles)"),
+            "{e}"
+        );
+        assert!(sim.step().is_ok());
     }
 }

@@ -670,18 +670,20 @@ where
         if state.obstacle_slots.is_empty() {
             state.obstacle_slots = Slots::identity(self.model.obstacles.len());
         }
-        if state.body_slots.len() != self.model.bodies.len()
-            || state.obstacle_slots.len() != self.model.obstacles.len()
+        if !state.body_slots.holds_positions(self.model.bodies.len())
+            || !state
+                .obstacle_slots
+                .holds_positions(self.model.obstacles.len())
         {
             return Err(invalid(
                 "state.body_slots",
                 format!(
-                    "{} bodies and {} obstacles",
-                    state.body_slots.len(),
-                    state.obstacle_slots.len()
+                    "slots at positions {:?} (bodies) and {:?} (obstacles)",
+                    state.body_slots.positions(),
+                    state.obstacle_slots.positions()
                 ),
                 &format!(
-                    "{} bodies and {} obstacles (the model's)",
+                    "each of 0..{} (bodies) and 0..{} (obstacles) once (the model's)",
                     self.model.bodies.len(),
                     self.model.obstacles.len()
                 ),
