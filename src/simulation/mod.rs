@@ -341,6 +341,8 @@ where
         let mut reference = Vec::new();
         let mut table = CellTable::default();
         let mut integration = Vec::new();
+        // Whether contact is detected at all (the massless-flow check below needs it).
+        let touches = !obstacles.is_empty() || bodies.len() > 1 || contact.self_contact;
         for (b, body) in bodies.iter().enumerate() {
             if bodies[..b].iter().any(|o| o.name == body.name) {
                 return Err(invalid("name", &body.name, "a unique body name"));
@@ -373,7 +375,6 @@ where
                      would need its thickness as an unknown)",
                 ));
             }
-            let touches = !obstacles.is_empty() || bodies.len() > 1 || contact.self_contact;
             if touches
                 && contact.method == crate::contact::ContactMethod::ImplicitProjection
                 && matches!(body.material, crate::material::Material::NortonHoff(_))

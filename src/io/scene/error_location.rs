@@ -162,8 +162,9 @@ pub(super) fn split_serde_message(msg: &str) -> (String, String) {
     )
 }
 
-/// serde prints a float in full (`floating point `1000...0.0``, 309 digits for 1e308): in
-/// scientific notation past 12 significant characters.
+/// serde prints a float in full (`floating point `1000...0.0``, 309 digits for 1e308): the
+/// long ones in the messages' [`super::plain`] notation (short ones keep serde's `3.0`, which
+/// says it is not an integer).
 fn readable_number(found: &str) -> String {
     let Some(digits) = found
         .strip_prefix("floating point `")
@@ -172,7 +173,7 @@ fn readable_number(found: &str) -> String {
         return found.to_string();
     };
     match digits.parse::<f64>() {
-        Ok(x) if digits.len() > 12 => format!("floating point `{x:e}`"),
+        Ok(x) if digits.len() > 12 => format!("floating point `{}`", super::plain(x)),
         _ => found.to_string(),
     }
 }
