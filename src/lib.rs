@@ -63,6 +63,9 @@ pub mod solver;
 #[allow(dead_code, unreachable_pub)]
 pub(crate) mod solver;
 pub mod time;
+// The verification chapter's measured figures (`book/verification.py`).
+#[cfg(test)]
+mod verify_record;
 
 pub use error::{Error, Result};
 pub use simulation::{Simulation, Simulation2, Simulation3};

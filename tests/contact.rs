@@ -4,6 +4,7 @@
 
 mod common;
 
+use common::verify::record;
 use common::{block, vec_d};
 use softway::contact::{ContactMethod, ContactSettings, FrictionLaw, Obstacle, ObstacleShape};
 use softway::dim::{Dim, SpatialDim};
@@ -143,6 +144,10 @@ where
     let force = 1.0 * 1.0 * V0 * section::<D>(); // rho c v0 A
     let name = method.name();
     print_impact::<D>(name, &r);
+    record("bar-wall", "duration", (r.duration - 2.0 * L) / (2.0 * L));
+    record("bar-wall", "force", (r.mean_force - force) / force);
+    record("bar-wall", "exit v", (r.exit_velocity + V0) / V0);
+    record("bar-wall", "energy", r.energy_error);
     assert!(
         (r.duration - 2.0 * L).abs() < 0.05 * 2.0 * L,
         "{name}: duration {}",
@@ -164,6 +169,11 @@ where
         r.energy_error
     );
     if method == ContactMethod::ImplicitProjection {
+        record(
+            "bar-wall-projection",
+            "penetration / L",
+            r.max_step_penetration / L,
+        );
         assert!(
             r.max_step_penetration < 1e-9 * L,
             "penetration {}",
@@ -207,6 +217,21 @@ where
     print_impact::<D>("explicit_projection", &r);
     let h = 2.0 * L / 300.0;
     let force = V0 * section::<D>(); // rho c v0 A
+    record(
+        "bar-wall-explicit",
+        "duration (steps)",
+        (r.duration - 2.0 * L) / h,
+    );
+    record("bar-wall-explicit", "force", (r.mean_force - force) / force);
+    record("bar-wall-explicit", "exit v", (r.exit_velocity + V0) / V0);
+    record(
+        "bar-wall-explicit-losses",
+        "penetration / L",
+        r.max_step_penetration / L,
+    );
+    record("bar-wall-explicit-losses", "D / E0", r.dissipated);
+    record("bar-wall-explicit-account", "E", r.account);
+    record("bar-wall-explicit-account", "Q", r.scheme_account);
     assert!(
         (r.duration - 2.0 * L).abs() <= h * (1.0 + 1e-9),
         "duration {}",
@@ -280,6 +305,11 @@ where
         if let Some(&k) = pushing.first() {
             if contacts.last() != Some(&k) {
                 // A new contact: no multiplier of that wall carried into its first step.
+                let carried = before
+                    .iter()
+                    .filter(|&&(_, m, _)| m == MasterId::Obstacle(k))
+                    .count();
+                record("al-walls-restart", "carried multipliers", carried as f64);
                 assert!(
                     before.iter().all(|&(_, m, _)| m != MasterId::Obstacle(k)),
                     "t = {}: contact with wall {k} starts from {before:?}",
@@ -291,12 +321,22 @@ where
         let state = &sim.state().multipliers;
         let t = sim.state().time;
         if (3.5..4.5).contains(&t) || (7.5..8.5).contains(&t) {
+            let between = pushing.len() + state.len();
+            record("al-walls", "forces or multipliers between", between as f64);
             assert!(
                 pushing.is_empty() && state.is_empty(),
                 "t = {t}: between contacts, forces on {pushing:?}, multipliers {state:?}"
             );
         }
         multipliers_seen += state.len();
+        let idle = state.iter().filter(|&&(_, master, lambda)| {
+            !(lambda > 0.0 && matches!(master, MasterId::Obstacle(k) if pushing.contains(&k)))
+        });
+        record(
+            "al-walls",
+            "multipliers off a pushing wall",
+            idle.count() as f64,
+        );
         for &(node, master, lambda) in state {
             let MasterId::Obstacle(k) = master else {
                 panic!("multiplier {master:?}")
@@ -352,18 +392,27 @@ where
             first.get_or_insert(n);
             last = n;
         }
+        record("two-bars", "momentum", (momentum(&sim) - p0).abs() / scale);
         assert!(
             (momentum(&sim) - p0).abs() < 1e-10 * scale,
             "momentum drifts"
         );
     }
     let duration = (last - first.expect("the bars meet") + 1) as f64 * h;
+    record(
+        "two-bars-waves",
+        "duration",
+        (duration - 2.0 * L) / (2.0 * L),
+    );
     assert!(
         (duration - 2.0 * L).abs() < 0.05 * 2.0 * L,
         "{}: duration {duration}",
         method.name()
     );
     let (vl, vr) = (mean_velocity(&sim, 0), mean_velocity(&sim, 1));
+    record("two-bars-waves", "exit v", (vl + V0) / V0);
+    record("two-bars-waves", "exit v", (vr - V0) / V0);
+    record("two-bars-symmetry", "v_l + v_r", (vl + vr) / V0);
     assert!(
         (vl + V0).abs() < 0.05 * V0 && (vr - V0).abs() < 0.05 * V0,
         "{}: {vl} {vr}",
@@ -463,6 +512,7 @@ where
     let (v, sim) = incline::<D>(theta, law, 0.3);
     let a = v / 0.3;
     let exact = G * (theta.sin() - mu * theta.cos());
+    record("incline", "a", (a - exact) / exact);
     assert!(
         (a - exact).abs() < 0.02 * exact,
         "a = {a}, expected {exact}"
@@ -471,6 +521,7 @@ where
     let e = sim.energies();
     assert!(e.dissipated > 0.0);
     let balance = (e.total() - sim.initial_energy() - e.external_work + e.dissipated).abs();
+    record("incline-energy", "account / W", balance / e.external_work);
     assert!(
         balance < 0.01 * e.external_work,
         "energy account off by {balance} of {}",
@@ -478,6 +529,7 @@ where
     );
     // It sticks when tan(theta) < mu.
     let (v, _) = incline::<D>(10f64.to_radians(), law, 0.3);
+    record("incline-stick", "v (m/s)", v);
     assert!(v.abs() < 1e-4, "sliding at {v} although tan(theta) < mu");
 }
 
@@ -499,6 +551,7 @@ where
     let area = if D == 2 { 0.1 } else { 0.1 * 0.05 };
     let mass = sim.body_mass(sim.body_ids()[0]).unwrap();
     let exact = G * theta.sin() - limit * area / mass;
+    record("tresca", "a", (v / 0.3 - exact) / exact);
     assert!(
         (v / 0.3 - exact).abs() < 0.02 * exact,
         "a = {}, expected {exact}",
@@ -524,6 +577,7 @@ where
     let tau = mass / (coefficient * area);
     let v_terminal = G * theta.sin() * tau;
     let exact = v_terminal * (1.0 - (-0.3 / tau).exp());
+    record("viscoplastic", "v", (v - exact) / exact);
     assert!(
         (v - exact).abs() < 0.02 * exact,
         "v = {v}, expected {exact}"
@@ -637,6 +691,9 @@ fn ring_drop_explicit_projection_energy_account() {
         e.dissipated,
         sim.energy_reference()
     );
+    record("ring-drop-explicit", "Q", worst_q);
+    record("ring-drop-explicit", "E worst", worst_e);
+    record("ring-drop-explicit", "E at 0.4 s", end);
     assert!(landed, "the ring never landed");
     assert!(worst_q < 1e-9, "scheme energy account off by {worst_q}");
     assert!(worst_e < 0.1, "energy account off by {worst_e}");

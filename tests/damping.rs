@@ -4,6 +4,7 @@
 
 mod common;
 
+use common::verify::record;
 use common::{block, energy_error, vec_d};
 use softway::dim::{Dim, SpatialDim};
 use softway::prelude::*;
@@ -40,6 +41,12 @@ where
     let factor: f64 = (1.0 - a * h * (1.0 - alpha)) / (1.0 + a * h * alpha);
     let discrete = factor.powi(200);
     let exact = (-a * 0.2f64).exp();
+    let off = sim
+        .state()
+        .velocity
+        .chunks(D)
+        .map(|v| (v[0] - discrete).abs());
+    record("damping-mass", "factor (m/s)", off.fold(0.0, f64::max));
     for (n, v) in sim.state().velocity.chunks(D).enumerate() {
         assert!(
             (v[0] - discrete).abs() < 1e-12,
@@ -48,11 +55,13 @@ where
         );
         assert!(v[1..].iter().all(|c| c.abs() < 1e-12));
     }
+    record("damping-mass", "exp(-at)", (discrete - exact) / exact);
     assert!(
         (discrete - exact).abs() < 2e-3 * exact,
         "{discrete} vs {exact}"
     );
     let e = sim.energies();
+    record("damping-mass", "energy", energy_error(&sim));
     assert!(e.dissipated > 0.0);
     assert!(energy_error(&sim) < 1e-9, "{}", energy_error(&sim));
 }
@@ -77,6 +86,12 @@ where
         eprintln!(
             "{D}D a = {a}, b = {b}: decay {rate:.5} /s against {expected:.5}, period {period:.6} \
              s against {expected_period:.6} (zeta {zeta:.4}, omega {omega:.3} rad/s)"
+        );
+        record("damping-oscillator", "decay", (rate - expected) / expected);
+        record(
+            "damping-oscillator",
+            "period",
+            (period - expected_period) / expected_period,
         );
         assert!(
             (rate - expected).abs() < 5e-3 * expected,

@@ -3,6 +3,7 @@
 
 mod common;
 
+use common::verify::record;
 use common::{block, dense, vec_d};
 use nalgebra::{DMatrix, DVector, SMatrix, SVector};
 use rand::{Rng, SeedableRng};
@@ -77,6 +78,8 @@ where
         .filter(|i| boundary.binary_search(&(i / D)).is_err())
         .collect();
     let scale = k.amax() * exact.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+    let residual = free.iter().map(|&i| f[i].abs()).fold(0.0, f64::max);
+    record("patch", "residual", residual / scale);
     for &i in &free {
         assert!(
             f[i].abs() < 1e-10 * scale,
@@ -94,6 +97,11 @@ where
             .sum::<f64>()
     });
     let u = kff.lu().solve(&rhs).unwrap();
+    let off = free
+        .iter()
+        .enumerate()
+        .map(|(a, &i)| (u[a] - exact[i]).abs());
+    record("patch", "displacement (m)", off.fold(0.0, f64::max));
     for (a, &i) in free.iter().enumerate() {
         assert!(
             (u[a] - exact[i]).abs() < 1e-9 * 1e-3,
@@ -104,6 +112,8 @@ where
     }
     // Internal forces from the stresses equal K u.
     let fi = sim.internal_forces(exact);
+    let off = (0..exact.len()).map(|i| (fi[i] - f[i]).abs());
+    record("patch", "f_int - K u", off.fold(0.0, f64::max) / scale);
     for i in 0..exact.len() {
         assert!((fi[i] - f[i]).abs() < 1e-9 * scale);
     }
@@ -142,6 +152,8 @@ where
             up[j] += eps;
             um[j] -= eps;
             let (fp, fm) = (sim.internal_forces(&up), sim.internal_forces(&um));
+            let off = (0..n).map(|i| ((fp[i] - fm[i]) / (2.0 * eps) - k[(i, j)]).abs());
+            record("stiffness", "K", off.fold(0.0, f64::max) / k.amax());
             for i in 0..n {
                 let fd = (fp[i] - fm[i]) / (2.0 * eps);
                 assert!(
@@ -179,6 +191,7 @@ where
             for k in 0..D {
                 let e = DVector::from_fn(n * D, |i, _| if i % D == k { 1.0 } else { 0.0 });
                 let total = e.dot(&(&m * &e));
+                record("mass", "mass", (total - rho * volume) / (rho * volume));
                 assert!(
                     (total - rho * volume).abs() < 1e-10 * rho * volume,
                     "{total}"
@@ -203,6 +216,7 @@ fn axisymmetric_mass_is_the_ring_mass() {
         .unwrap();
     let expected = 10.0 * 2.0 * std::f64::consts::PI * 2.0 * 4.0;
     let got = sim.body_mass(sim.body_ids()[0]).unwrap();
+    record("mass", "axisymmetric", (got - expected) / expected);
     assert!(
         (got - expected).abs() < 1e-10 * expected,
         "{got} vs {expected}"
@@ -235,11 +249,21 @@ where
         sim.step().unwrap();
     }
     let t = sim.state().time;
+    let off = (0..sim.node_count())
+        .map(|n| (sim.displacement(sim.body_ids()[0], n).unwrap() - v * t).norm());
+    record("rigid", "u", off.fold(0.0, f64::max) / (v.norm() * t));
     for n in 0..sim.node_count() {
         let u = sim.displacement(sim.body_ids()[0], n).unwrap();
         assert!((u - v * t).norm() < 1e-12 * v.norm() * t);
     }
     let e = sim.energies();
+    record("rigid", "strain energy", e.internal / e0);
+    record("rigid", "kinetic", (e.kinetic - e0).abs() / e0);
+    record(
+        "rigid",
+        "momentum",
+        (momentum(&sim) - p0).norm() / p0.norm(),
+    );
     assert!(e.internal < 1e-20 * e0, "strain energy {}", e.internal);
     assert!((e.kinetic - e0).abs() < 1e-12 * e0);
     assert!((momentum(&sim) - p0).norm() < 1e-12 * p0.norm());
@@ -272,12 +296,18 @@ where
             let u = sim.displacement(sim.body_ids()[0], 0).unwrap();
             let v = sim.velocity(sim.body_ids()[0], 0).unwrap();
             // Exact up to the Newton tolerance (1e-8 relative) accumulated over the steps.
+            record(
+                "free-fall",
+                "v",
+                (v - g * h * nf).norm() / (g.norm() * h * nf),
+            );
             assert!(
                 (v - g * h * nf).norm() < 1e-7 * g.norm() * h * nf,
                 "{v:?} vs {:?}",
                 g * h * nf
             );
             let expected = g * h * h * (nf * nf / 2.0 + (b - 0.5) * nf);
+            record("free-fall", "u", (u - expected).norm() / expected.norm());
             assert!(
                 (u - expected).norm() < 1e-7 * expected.norm(),
                 "{u:?} vs {expected:?}"
@@ -344,6 +374,8 @@ where
 {
     let coarse = bar_period::<D>(8, 24);
     let fine = bar_period::<D>(64, 400);
+    record("bar-period", "64 cells", fine);
+    record("bar-period", "8 cells", coarse);
     assert!(fine < 0.01, "fine error {fine}");
     assert!(fine < coarse / 4.0, "coarse {coarse}, fine {fine}");
 }
@@ -393,6 +425,11 @@ where
             second_half = second_half.max(e);
         }
     }
+    record(
+        "large-steps",
+        "max E second/first half",
+        second_half / first_half,
+    );
     assert!(
         second_half <= 1.05 * first_half,
         "energy grows: {first_half} then {second_half} (E0 {e0})"
@@ -410,6 +447,7 @@ where
         match sim.step() {
             Ok(r) => assert!(r.energies.total().is_finite()),
             Err(Error::Unstable { step, detail, .. }) => {
+                record("unstable", "stopped at step", step as f64);
                 assert!(step > 1 && detail.contains("exceeds 1e6"), "{detail}");
                 // The state is the last good one.
                 assert!(sim.state().velocity.iter().all(|v| v.is_finite()));
@@ -467,6 +505,7 @@ fn thick_cylinder_matches_lame() {
         let x = sim.reference_positions()[n];
         let u = sim.displacement(sim.body_ids()[0], n).unwrap();
         let exact = aa * x.x + bb / x.x;
+        record("lame", "u_r", (u.x - exact).abs() / u_a);
         assert!(
             (u.x - exact).abs() < 0.01 * u_a,
             "r = {}: {} vs {exact}",
@@ -501,6 +540,17 @@ fn assembly_is_identical_with_one_and_two_threads() {
     };
     let (k1, m1) = run(1);
     let (k2, m2) = run(2);
+    let differ = |a: &[f64], b: &[f64]| {
+        a.iter()
+            .zip(b)
+            .filter(|(x, y)| x.to_bits() != y.to_bits())
+            .count()
+    };
+    record(
+        "assembly-threads",
+        "differing values",
+        (differ(&k1, &k2) + differ(&m1, &m2)) as f64,
+    );
     assert!(k1.iter().zip(&k2).all(|(a, b)| a.to_bits() == b.to_bits()));
     assert!(m1.iter().zip(&m2).all(|(a, b)| a.to_bits() == b.to_bits()));
 }

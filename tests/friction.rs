@@ -8,6 +8,7 @@
 
 mod common;
 
+use common::verify::record;
 use common::{block, energy_error, vec_d};
 use softway::contact::{ContactMethod, ContactSettings, FrictionLaw, Obstacle, ObstacleShape};
 use softway::dim::{Dim, SpatialDim};
@@ -307,6 +308,9 @@ fn sticks_on_a_slope_of<const D: usize>(
         high - low,
         energy_error(&sim)
     );
+    if degrees == 25.0 {
+        record("friction-stick", "motion (m)", high - low);
+    }
     assert!(
         high - low < 1e-6,
         "the block moved by {:e} m along the slope between 0.1 s and 1 s",
@@ -352,6 +356,7 @@ where
         sim.energies().dissipated,
         energy_error(&sim)
     );
+    record("friction-slide", "a", error);
     assert!(error.abs() < 0.01, "a = {a}, expected {exact}");
     assert!(sim.energies().dissipated > 0.0);
     // Measured at most 6.9e-4 (implicit projection in 3D, its projection booked).
@@ -480,8 +485,12 @@ where
             high / weight
         );
         if damping.is_none() {
+            record("floor-reaction", "undamped low / mg", low / weight);
+            record("floor-reaction", "undamped high / mg", high / weight);
             assert!(low < 0.7 * weight && high > 1.3 * weight, "{low} {high}");
         } else {
+            let off = (low - weight).abs().max((high - weight).abs());
+            record("floor-reaction", "damped F / mg - 1", off / weight);
             assert!(
                 (low - weight).abs() < 2e-2 * weight && (high - weight).abs() < 2e-2 * weight,
                 "{low} {high}"

@@ -118,6 +118,7 @@ where
          (slip {slip:.2e} m), at most {most} iterations per step, dissipated {:.3e} J",
         e.dissipated
     );
+    common::verify::record("gripper", "slip (m)", slip);
     assert!(slip.abs() < 1e-3, "slip {slip} m");
     // Implicit projection's velocity penalty (1e4 times the largest diagonal) leaves the
     // contact matrices within reach of single precision: no factor failed its refinement.
@@ -185,5 +186,6 @@ fn bundled_gripper_scene_lifts_the_block() {
     let lifted = mean_lift::<2>(&sim.state().displacement) - at_hold;
     let travel = LIFT_SPEED * (scene.end_time - HOLD);
     eprintln!("bundled gripper: lifted {lifted:.5} m, jaws {travel:.3} m");
+    common::verify::record("gripper", "slip (m)", travel - lifted);
     assert!((travel - lifted).abs() < 1e-3, "slip {}", travel - lifted);
 }

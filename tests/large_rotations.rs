@@ -117,6 +117,9 @@ where
     for rotation in [RotationUpdate::HughesWinget, RotationUpdate::PaperSeries] {
         let turn = spin::<D>(hypoelastic(rotation), 0.0);
         eprintln!("{D}D {rotation:?}: {turn:?}");
+        common::verify::record("spin", "return (m)", turn.return_error);
+        common::verify::record("spin", "internal / kinetic", turn.internal_ratio);
+        common::verify::record("spin", "energy", turn.energy_error);
         assert!(turn.return_error < 2e-3, "{rotation:?}: {turn:?}");
         assert!(turn.radius_error < 5e-3, "{rotation:?}: {turn:?}");
         assert!(turn.internal_ratio < 1e-3, "{rotation:?}: {turn:?}");
@@ -211,6 +214,7 @@ where
          error {account:.2e}",
         100.0 * error
     );
+    common::verify::record("pendulum", "time", error);
     assert!(error.abs() < 0.01, "{error}");
     assert!(account < 1e-2, "{account}");
 }

@@ -160,6 +160,8 @@ where
         travel / 0.1,
         iterations as f64 / steps as f64
     );
+    common::verify::record("rolling", "a", error);
+    common::verify::record("rolling", "turn", (turned - travel / 0.1) / (travel / 0.1));
     assert!(error.abs() < 0.02, "{method:?}: {error:+.4}");
     assert!(
         (turned - travel / 0.1).abs() < 0.02 * travel / 0.1,

@@ -45,6 +45,7 @@ fn one_cut_step_moves_the_conserved_energy_little() {
         assert!((steady - 1.0).abs() < 1e-9, "k = {k}: {steady}");
         let once = free_flight_after_impact(k, |n| n == 5);
         eprintln!("k = {k}: Q(end)/Q(separation) {once} after one cut step");
+        common::verify::record("step-cut", "Q change", once - 1.0);
         assert!((once - 1.0).abs() < 0.025, "k = {k}: {once}");
     }
 }

@@ -83,6 +83,8 @@ where
     Dim<D>: SpatialDim<D>,
 {
     let (penetration, error) = stack::<D>(ContactMethod::SoftWay, GapDisplacement::Configuration);
+    common::verify::record("stack", &format!("energy {D}D"), error);
+    common::verify::record("stack", &format!("penetration {D}D (m)"), penetration);
     assert!(error < 2e-2, "energy error {error}");
     // Measured 3.6e-4 m (2D) and 1.05e-3 m (3D): far above the penalty's own pressure / zeta
     // (3e-6 m at the bottom of the stack), an open defect (book, contact chapter); with one

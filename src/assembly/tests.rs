@@ -5,6 +5,7 @@ use nalgebra::{DMatrix, DVector, SVector};
 
 use super::*;
 use crate::material::{Hypoelastic, RotationUpdate};
+use crate::verify_record::record;
 
 /// One cell of `kind` with nodes `x` (reference), its forces and its tangent
 /// `d forces / d u` (weights (1, 0)) at displacement `u` from the start displacement `u0`,
@@ -153,6 +154,7 @@ where
     let (_, k) = forces_and_tangent::<D>(kind, kinematics, &x, &u0, &u0, &history);
     let fd = difference::<D>(kind, kinematics, &x, &u0, &u0, &history, &direction);
     let e = relative(&(&k * &direction), &fd);
+    record("hypoelastic-tangent", "unstressed", e);
     assert!(e < 1e-6, "{kind:?} {kinematics:?} unstressed: {e:e}");
     // Pre-stressed (1 % of E): in the direction of a rigid rotation of the current
     // configuration (in-plane) the geometric stiffness is the whole, exact answer.
@@ -176,6 +178,7 @@ where
     let e = relative(&(&k * &spin), &fd);
     eprintln!("{kind:?} {kinematics:?}: rotation {e:.2e}");
     if kinematics != Kinematics::Axisymmetric {
+        record("hypoelastic-tangent", "rotation", e);
         assert!(e < 1e-6, "{kind:?} {kinematics:?} rotation: {e:e}");
         // The forces turn with the body: d f = spin x f.
         let turned = DVector::from_fn(m, |i, _| match i % D {
@@ -186,6 +189,7 @@ where
         assert!(relative(&fd, &turned) < 1e-6, "{kind:?} {kinematics:?}");
     } else {
         // An in-plane rotation of an axisymmetric section is not rigid (it changes radii).
+        record("hypoelastic-tangent", "rotation axisymmetric", e);
         assert!(
             e < 3.0 * stress / 1e6,
             "{kind:?} axisymmetric rotation: {e:e}"
@@ -196,6 +200,7 @@ where
     let fd = difference::<D>(kind, kinematics, &x, &u0, &u0, &history, &direction);
     let e = relative(&(&k * &direction), &fd);
     eprintln!("{kind:?} {kinematics:?}: pre-stressed {e:.2e}");
+    record("hypoelastic-tangent", "general", e);
     assert!(
         e < 3.0 * stress / 1e6,
         "{kind:?} {kinematics:?} pre-stressed: {e:e}"

@@ -327,12 +327,15 @@ pub(crate) fn threshold_change<K: Ord + Copy>(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::verify_record::record;
     use nalgebra::{Matrix3, Vector2, Vector3};
 
     /// Central differences of a force function of the slip.
     fn check_friction<const D: usize>(law: FrictionLaw, slip: SVector<f64, D>, n: SVector<f64, D>) {
         let (f, d) = law.force(10.0, 0.5, &slip, &n);
         // Dissipation: F_t . v_t <= 0 and the force stays in the tangent plane.
+        record("friction-tangent", "F.v", f.dot(&slip));
+        record("friction-tangent", "F.n", f.dot(&n).abs());
         assert!(f.dot(&slip) <= 1e-15, "{law:?}");
         assert!(f.dot(&n).abs() < 1e-12);
         let eps = 1e-7 * slip.norm().max(1e-9);
@@ -351,6 +354,8 @@ mod tests {
                 e - n * n[j]
             };
             if ej_t.norm() > 0.5 {
+                let error = (tangential - fd_t).norm() / (1.0 + fd_t.norm());
+                record("friction-tangent", "tangent", error);
                 assert!(
                     (tangential - fd_t).norm() <= 1e-5 * (1.0 + fd_t.norm()),
                     "{law:?} column {j}: {tangential:?} vs {fd_t:?}"
@@ -398,13 +403,24 @@ mod tests {
         };
         let n = Vector2::new(0.0, 1.0);
         let (f, _) = law.force(100.0, 1.0, &Vector2::new(2.0, 0.0), &n);
+        record(
+            "friction-closed-forms",
+            "slip",
+            (f - Vector2::new(-50.0, 0.0)).norm(),
+        );
         assert!((f - Vector2::new(-50.0, 0.0)).norm() < 1e-9);
         let (f, _) = law.force(100.0, 1.0, &Vector2::new(1e-6, 0.0), &n);
+        record(
+            "friction-closed-forms",
+            "stick",
+            (f.x + 50.0 / 2f64.sqrt()).abs(),
+        );
         assert!(
             (f.x + 50.0 / 2f64.sqrt()).abs() < 1e-9,
             "regularised stick: {f:?}"
         );
         let (f, _) = law.force(-1.0, 1.0, &Vector2::new(2.0, 0.0), &n);
+        record("friction-closed-forms", "tension", f.norm());
         assert_eq!(f, Vector2::zeros());
     }
 
@@ -419,6 +435,11 @@ mod tests {
         let n = Vector2::new(0.0, 1.0);
         let (f, _) = law.force(1.0, 2.0, &Vector2::new(0.3, 0.0), &n);
         let expected = -0.05 * 2.0 * 0.3f64.powf(0.1);
+        record(
+            "friction-closed-forms",
+            "viscoplastic",
+            (f.x - expected).abs(),
+        );
         assert!((f.x - expected).abs() < 1e-12);
     }
     /// The return map's tangent against central differences, in stick and in slip.

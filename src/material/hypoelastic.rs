@@ -186,6 +186,7 @@ impl ConstitutiveLaw for Hypoelastic {
 mod tests {
     use super::*;
     use crate::dim::Kinematics;
+    use crate::verify_record::record;
     use nalgebra::Rotation3;
 
     fn law(rotation: RotationUpdate) -> Hypoelastic {
@@ -253,6 +254,10 @@ mod tests {
         eprintln!(
             "first invariant, stress after the turn: Hughes-Winget {hw:?}, series {series:?}"
         );
+        record("hypoelastic-turn", "Hughes-Winget invariant", hw.0);
+        record("hypoelastic-turn", "Hughes-Winget stress", hw.1);
+        record("hypoelastic-turn", "series invariant", series.0);
+        record("hypoelastic-turn", "series stress", series.1);
         // Round-off only: E times the strain increment round-off (1e-16) per step.
         assert!(hw.0 < 1e-10 && hw.1 < 1e-10, "Hughes-Winget {hw:?}");
         // The series is not orthogonal: Q^T Q = I + W^4/4 drifts, but stays small.

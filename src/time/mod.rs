@@ -155,6 +155,7 @@ impl SpaceTimeScheme {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::verify_record::record;
 
     fn kappas() -> impl Iterator<Item = f64> {
         (-3..=8).map(|e| 10f64.powi(e))
@@ -166,6 +167,7 @@ mod tests {
             let s = SpaceTimeScheme::new(alpha, Beta::Energy).unwrap();
             for kappa in kappas() {
                 let det = s.transfer_matrix(kappa).determinant();
+                record("transfer-det", "det - 1", (det - 1.0).abs());
                 assert!(
                     (det - 1.0).abs() < 1e-9,
                     "alpha {alpha} kappa {kappa}: {det}"
@@ -181,6 +183,7 @@ mod tests {
             assert!(s.is_unconditionally_stable());
             for kappa in kappas() {
                 let r = s.spectral_radius(kappa);
+                record("transfer-stable", "rho - 1", r - 1.0);
                 assert!(r <= 1.0 + 1e-7, "alpha {alpha} kappa {kappa}: {r}");
             }
         }
@@ -194,12 +197,19 @@ mod tests {
             let limit = SpaceTimeScheme::stiff_limit_radius(alpha);
             assert!(limit > 1.0);
             let r = s.spectral_radius(1e12);
+            record("transfer-stiff-limit", "limit", (r - limit).abs() / limit);
             assert!(
                 (r - limit).abs() < 1e-4 * limit,
                 "alpha {alpha}: {r} vs {limit}"
             );
             // Stable up to kappa = 4 / (1 - 2 alpha^2), unstable beyond.
             let edge = 4.0 / (1.0 - 2.0 * alpha * alpha);
+            let (below, above) = (
+                s.spectral_radius(0.99 * edge),
+                s.spectral_radius(1.01 * edge),
+            );
+            record("transfer-stiff-limit", "rho - 1 below", below - 1.0);
+            record("transfer-stiff-limit", "rho - 1 above", above - 1.0);
             assert!(s.spectral_radius(0.99 * edge) <= 1.0 + 1e-9);
             assert!(s.spectral_radius(1.01 * edge) > 1.0);
         }

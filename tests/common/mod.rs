@@ -1,6 +1,10 @@
 //! Helpers shared by the integration tests.
 #![allow(dead_code)]
 
+/// The verification chapter's measured figures: `verify::record(row, quantity, value)`.
+#[path = "../../src/verify_record.rs"]
+pub mod verify;
+
 use nalgebra::{DMatrix, SVector, Vector2, Vector3};
 use softway::element::ElementKind;
 use softway::mesh::generators::{cuboid, rectangle};
