@@ -65,6 +65,7 @@ dims! {
     random_deformed_meshes_match_brute_force => random_matches_brute_force;
     folding_strip_finds_self_contact => folding_strip;
     thin_body_fast_is_caught => thin_body_fast;
+    a_node_beside_its_own_corner_touches_nothing => node_beside_own_corner;
 }
 
 fn e<const D: usize>(k: usize) -> SVector<f64, D> {
@@ -152,6 +153,7 @@ fn brute_choose<const D: usize>(
     p: &SVector<f64, D>,
     facets: impl Iterator<Item = (usize, [SVector<f64, D>; D])>,
     accept: impl Fn(&SVector<f64, D>) -> bool,
+    keep: impl Fn(usize, f64, f64) -> bool,
 ) -> Option<(usize, f64, SVector<f64, D>, Feature)>
 where
     Dim<D>: SpatialDim<D>,
@@ -163,6 +165,9 @@ where
             continue;
         }
         let pr = <Dim<D> as GeometryDim<D>>::project_on_facet(p, &v).unwrap();
+        if !keep(f, (p - pr.point).dot(&n), (p - pr.point).norm()) {
+            continue;
+        }
         all.push((
             f,
             (p - pr.point).norm(),
@@ -184,6 +189,30 @@ where
         }
     }
     best
+}
+
+/// Shortest paths (m) along the facets' edges from `node` to every node (Dijkstra, by
+/// linear scans).
+fn surface_distances<const D: usize>(
+    facets: &[[usize; D]],
+    x: &[SVector<f64, D>],
+    node: usize,
+) -> Vec<f64> {
+    let mut dist = vec![f64::INFINITY; x.len()];
+    let mut done = vec![false; x.len()];
+    dist[node] = 0.0;
+    while let Some(u) = (0..x.len())
+        .filter(|&v| !done[v] && dist[v].is_finite())
+        .min_by(|&a, &b| dist[a].total_cmp(&dist[b]))
+    {
+        done[u] = true;
+        for f in facets.iter().filter(|f| f.contains(&u)) {
+            for &v in f {
+                dist[v] = dist[v].min(dist[u] + (x[v] - x[u]).norm());
+            }
+        }
+    }
+    dist
 }
 
 fn brute_obstacle_gap<const D: usize>(o: &Obstacle<D>, p: &SVector<f64, D>) -> f64
@@ -213,7 +242,7 @@ where
                 .iter()
                 .enumerate()
                 .map(|(i, f)| (i, std::array::from_fn(|k| vertices[f[k]])));
-            brute_choose(&q, fs, |_| true).unwrap().1
+            brute_choose(&q, fs, |_| true, |_, _, _| true).unwrap().1
         }
     }
 }
@@ -369,8 +398,14 @@ where
                         .unwrap()
                         .1;
                     let accept = |n: &SVector<f64, D>| body != *own || normals[node].dot(n) < 0.0;
+                    // Self-contact penetrating: not nearer than a third of the path along the
+                    // surface.
+                    let path = surface_distances(&facets, &x1, node);
+                    let keep = |f: usize, g: f64, d: f64| {
+                        body != *own || g >= 0.0 || facets[f].iter().all(|&v| path[v] > 3.0 * d)
+                    };
                     let fs = group.iter().map(|&f| (f, facets[f].map(|v| x1[v])));
-                    if let Some((f, g, _, feat)) = brute_choose(&x1[node], fs, accept) {
+                    if let Some((f, g, _, feat)) = brute_choose(&x1[node], fs, accept, keep) {
                         if g < margin {
                             expected.push((node, Master::Facet(f), g, Some(feat)));
                         }
@@ -473,6 +508,65 @@ where
         );
         assert!((p.normal - e::<D>(D - 1)).norm() < 1e-9);
     }
+}
+
+/// The tube crush's curl in miniature: the cells along a unit block's left face squashed
+/// against its top-left corner, whose top face leans down by 0.08 per metre (an acute corner,
+/// 85 degrees). The node that came from half height sits 0.06 m below the corner, right under
+/// the top face's first facet, which is two facets away along the surface (beyond the
+/// neighbours self-contact excludes) and faces it (normals at 95 degrees): it lies 0.06 m
+/// inside its own body, 0.06 m from that facet along the surface, and touches nothing.
+fn node_beside_own_corner<const D: usize>()
+where
+    Dim<D>: SpatialDim<D> + TestDim<D>,
+{
+    let block = <Dim<D>>::block([0.0; D], [1.0; D], [4; D], false);
+    let (x0, offsets) = stack(&[&block]);
+    let top = |x: &SVector<f64, D>| (x[D - 1] - 1.0).abs() < 1e-12;
+    let x1: Vec<SVector<f64, D>> = x0
+        .iter()
+        .map(|x| {
+            let mut y = *x;
+            if x[0] == 0.0 {
+                for (from, to) in [(0.75, 0.97), (0.5, 0.94)] {
+                    if (x[D - 1] - from).abs() < 1e-12 {
+                        y[D - 1] = to;
+                    }
+                }
+            }
+            if top(x) {
+                y[D - 1] = 1.0 - 0.08 * x[0];
+            }
+            y
+        })
+        .collect();
+    let surface = ContactSurface::from_bodies(&[&block], &offsets);
+    let mut det = Detector::new(
+        surface,
+        DetectionOptions {
+            self_contact: true,
+            margin: 0.05,
+            ..Default::default()
+        },
+    );
+    det.update_candidates(&x1, &x1, &[], &[]);
+    let beside: Vec<usize> = (0..x1.len())
+        .filter(|&n| x1[n][0] == 0.0 && (x1[n][D - 1] - 0.94).abs() < 1e-12)
+        .collect();
+    assert!(!beside.is_empty());
+    // The pair the topology alone lets through: the corner's facet, found by the broad phase.
+    assert!(det
+        .candidates()
+        .iter()
+        .any(|&(n, m)| beside.contains(&n) && matches!(m, Master::Facet(_))));
+    let pairs = det.pairs(&x1, &[]);
+    let deepest = pairs.iter().map(|p| p.gap).fold(f64::INFINITY, f64::min);
+    assert!(
+        pairs.iter().all(|p| !beside.contains(&p.slave)),
+        "{:?}",
+        pairs.iter().find(|p| beside.contains(&p.slave))
+    );
+    assert!(deepest > -1e-9, "a pair {deepest} m deep");
 }
 
 fn thin_body_fast<const D: usize>()
