@@ -37,7 +37,7 @@ CHAPTER = ROOT / "book" / "src" / "verification.md"
 
 # (cargo test target arguments, test name filters): the tests the chapter's rows name.
 RUNS = [
-    (["--lib"], ["time::tests::", "friction::tests::", "assembly::tests::", "hypoelastic::tests::"]),
+    (["--lib"], ["time::tests::", "friction::tests::", "assembly::tests::", "hypoelastic::tests::", "gap::tests::"]),
     (["--test", "foundation"], []),
     (["--test", "contact"], []),
     (["--test", "step_size_changes"], []),

@@ -324,6 +324,18 @@ where
         sim.velocity(a, 0).unwrap()[0] > 0.1,
         "the block moves with the paddle"
     );
+    // A step of another size than the configured one reaches the pose too (its velocity is
+    // taken over the step actually run), and a velocity set afterwards replaces the pose.
+    let rotation = sim.obstacle_rotation(id).unwrap();
+    let target = sim.obstacle_translation(id).unwrap() + vec_d::<D>([1e-3, 0.0, 0.0]);
+    sim.set_obstacle_next_pose(id, target, rotation).unwrap();
+    sim.advance(h / 4.0, &mut NullRecorder).unwrap();
+    assert!((sim.obstacle_translation(id).unwrap() - target).norm() < 1e-12);
+    sim.set_obstacle_next_pose(id, target * 2.0, rotation)
+        .unwrap();
+    sim.set_obstacle_velocity(id, SVector::zeros()).unwrap();
+    sim.step().unwrap();
+    assert!((sim.obstacle_translation(id).unwrap() - target).norm() < 1e-12);
     let bad = SMatrix::<f64, D, D>::identity() * 2.0;
     assert!(sim
         .set_obstacle_next_pose(id, SVector::zeros(), bad)

@@ -344,6 +344,7 @@ pub fn obstacle_gap_hessian<const D: usize>(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::verify_record::record;
     use nalgebra::Vector2;
 
     #[test]
@@ -352,10 +353,21 @@ mod tests {
         let coords = [0.5, -0.1, 0.0, 0.0, 2.0, 0.0];
         let (g, grad) = facet_gap_gradient::<2>(&coords).unwrap();
         // The body is on the left of (0,0) -> (2,0), so n = (0, -1) and the point is outside.
+        record("gap-facet", "gap", (g - 0.1).abs());
         assert!((g - 0.1).abs() < 1e-15);
         // dg/dx_s = n; dg/dy_1 = -0.75 n; dg/dy_2 = -0.25 n.
         let (_, n) =
             <Dim<2>>::facet_measure_normal(&[Vector2::new(0.0, 0.0), Vector2::new(2.0, 0.0)]);
+        let by_hand = [
+            (grad[1] - n.y).abs(),
+            (grad[3] + 0.75 * n.y).abs(),
+            (grad[5] + 0.25 * n.y).abs(),
+        ];
+        record(
+            "gap-facet",
+            "by hand",
+            by_hand.iter().copied().fold(0.0, f64::max),
+        );
         assert!((grad[1] - n.y).abs() < 1e-15);
         assert!((grad[3] + 0.75 * n.y).abs() < 1e-12);
         assert!((grad[5] + 0.25 * n.y).abs() < 1e-12);
@@ -368,6 +380,7 @@ mod tests {
             let fd = (facet_gap_gradient::<2>(&p).unwrap().0
                 - facet_gap_gradient::<2>(&m).unwrap().0)
                 / (2.0 * eps);
+            record("gap-facet", "central differences", (fd - grad[j]).abs());
             assert!((fd - grad[j]).abs() < 1e-7, "{j}: {fd} vs {}", grad[j]);
         }
         let h = facet_gap_hessian::<2>(

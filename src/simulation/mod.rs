@@ -10,7 +10,7 @@
 //! * `monitor`: overlaps in the current configuration, the energy created beyond the input.
 
 use faer::sparse::SparseColMat;
-use nalgebra::SVector;
+use nalgebra::{SMatrix, SVector};
 use serde::{Deserialize, Serialize};
 
 mod cell_fields;
@@ -150,6 +150,9 @@ where
     /// Active sets that came back in the step under way, over all its attempts (cut ones
     /// included): an output of the step, not state.
     step_cycles: usize,
+    /// The poses the host asked obstacles to reach at the end of the next step
+    /// ([`Simulation::set_obstacle_next_pose`]): input for one step, not state.
+    next_poses: Vec<(ObstacleId, SVector<f64, D>, SMatrix<f64, D, D>)>,
     /// Whether the attempt under way runs the globalized Newton (a line search on the step's
     /// energy, the secant tangent for slips that turned; `newton.rs`): a step whose plain
     /// Newton stalls is tried again with it before it is cut. Per attempt, not state.
@@ -183,7 +186,9 @@ pub type Simulation2 = Simulation<2>;
 /// 3D simulation.
 pub type Simulation3 = Simulation<3>;
 
-/// Builds a [`Simulation`].
+/// Builds a [`Simulation`]: made by [`Simulation::builder`] (default settings, no body), the
+/// one way to build a simulation in code ([`Simulation::from_model`] takes a model held as a
+/// value, [`Simulation::from_parts`] restores a saved state).
 #[derive(Debug, Clone)]
 pub struct SimulationBuilder<const D: usize>
 where
@@ -213,11 +218,6 @@ impl<const D: usize> SimulationBuilder<D>
 where
     Dim<D>: SpatialDim<D>,
 {
-    /// Default settings, no body.
-    pub fn new() -> Self {
-        Self::default()
-    }
-
     /// Replaces all settings.
     pub fn settings(mut self, settings: Settings<D>) -> Self {
         self.settings = settings;
@@ -320,7 +320,7 @@ where
 {
     /// A builder with default settings.
     pub fn builder() -> SimulationBuilder<D> {
-        SimulationBuilder::new()
+        SimulationBuilder::default()
     }
 
     /// Validates a model, assembles its matrices and sets the initial state: what
@@ -606,6 +606,7 @@ where
             general_path,
             contact_log: Default::default(),
             step_cycles: 0,
+            next_poses: Vec::new(),
             globalized_newton: false,
             sweeps: Vec::new(),
             caches: Caches {
@@ -632,6 +633,7 @@ where
     pub fn try_clone(&self) -> Result<Self> {
         let mut copy = Self::from_parts(self.model.clone(), self.state.clone())?;
         copy.warnings.clone_from(&self.warnings);
+        copy.next_poses.clone_from(&self.next_poses);
         Ok(copy)
     }
 

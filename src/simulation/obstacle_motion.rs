@@ -88,6 +88,7 @@ where
             ));
         }
         self.state.obstacle_velocities[k * D..k * D + D].copy_from_slice(v.as_slice());
+        self.next_poses.retain(|p| p.0 != obstacle);
         Ok(())
     }
 
@@ -111,6 +112,7 @@ where
             ));
         }
         self.state.obstacle_angular_velocities[k * a..k * a + a].copy_from_slice(omega);
+        self.next_poses.retain(|p| p.0 != obstacle);
         Ok(())
     }
 
@@ -118,7 +120,9 @@ where
     /// by `translation` (m) from t = 0 and turned by `rotation` (a rotation matrix) about
     /// it. The step moves it there at constant velocity and angular velocity (the shortest
     /// turn), so contact sees the surface velocity of that motion and the obstacle's work is
-    /// booked. How a host drives a gripper's jaw or a robot's link: call it before every step.
+    /// booked; a step of another size ([`Simulation::advance`]) reaches the pose too. A velocity
+    /// or angular velocity set afterwards replaces the pose. How a host drives a gripper's jaw
+    /// or a robot's link: call it before every step.
     pub fn set_obstacle_next_pose(
         &mut self,
         obstacle: ObstacleId,
@@ -144,11 +148,25 @@ where
                 "a rotation matrix (orthonormal, determinant 1)",
             ));
         }
-        let h = self.model.settings.time_step;
+        self.drive_to_pose(k, &translation, &rotation, self.model.settings.time_step);
+        self.next_poses.retain(|p| p.0 != obstacle);
+        self.next_poses.push((obstacle, translation, rotation));
+        Ok(())
+    }
+
+    /// Sets obstacle `k`'s velocity and angular velocity so that a step of `h` (s) ends at the
+    /// pose.
+    fn drive_to_pose(
+        &mut self,
+        k: usize,
+        translation: &SVector<f64, D>,
+        rotation: &SMatrix<f64, D, D>,
+        h: f64,
+    ) {
         let v = (translation - self.translation_of(k)) / h;
         let (a, r) = (<Dim<D>>::ANGULAR, <Dim<D>>::ROTATION);
         let turn =
-            <Dim<D>>::turn_between(&self.state.obstacle_rotations[k * r..k * r + r], &rotation);
+            <Dim<D>>::turn_between(&self.state.obstacle_rotations[k * r..k * r + r], rotation);
         self.state.obstacle_velocities[k * D..k * D + D].copy_from_slice(v.as_slice());
         for (w, t) in self.state.obstacle_angular_velocities[k * a..k * a + a]
             .iter_mut()
@@ -156,7 +174,17 @@ where
         {
             *w = t / h;
         }
-        Ok(())
+    }
+
+    /// Takes the poses asked by [`Simulation::set_obstacle_next_pose`] over a step of `h` (s),
+    /// the one about to run (the host may run another size than the configured one).
+    pub(crate) fn drive_to_next_poses(&mut self, h: f64) {
+        for (id, translation, rotation) in self.next_poses.clone() {
+            // An obstacle removed since has no pose to reach.
+            if let Ok(k) = self.obstacle_index(id) {
+                self.drive_to_pose(k, &translation, &rotation, h);
+            }
+        }
     }
 
     /// The obstacles in their current pose (`translation` and `rotation` set).

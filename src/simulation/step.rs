@@ -91,12 +91,14 @@ where
         if !(h > 0.0 && h.is_finite()) {
             return Err(invalid("time_step", h, "a finite value > 0 [s]"));
         }
+        self.drive_to_next_poses(h);
         let saved = self.state.clone();
         let saved_log = self.contact_log.clone();
         self.step_cycles = 0;
         self.sweeps.clear();
         match self.advance_cut(h, recorder, 0, true) {
             Ok(mut r) => {
+                self.next_poses.clear();
                 self.close_contact_log(&r.contact_forces);
                 r.contact_cycles = self.step_cycles;
                 Ok(r)
