@@ -440,6 +440,56 @@ where
     }
 }
 
+/// Explicit projection between two bodies: its end-of-step impulses keep the pair's momentum
+/// (one impulse, opposite on the two sides; to 1e-9: the internal forces of the squeezed
+/// blocks sum to zero to round-off), and `contact_force_between` includes them.
+fn projection_impulses_between_bodies<const D: usize>()
+where
+    Dim<D>: SpatialDim<D>,
+{
+    let h = 1.0 / 240.0;
+    let mut v = SVector::<f64, D>::zeros();
+    v[0] = -2.0;
+    let mut sim = Simulation::<D>::builder()
+        .time_step(h)
+        .body(cube("a", 0.0, 0.0))
+        .body(cube("b", 0.101, 0.0).with_velocity(v))
+        .contact(ContactSettings {
+            method: ContactMethod::ExplicitProjection,
+            ..Default::default()
+        })
+        .build()
+        .unwrap();
+    let (a, b) = (sim.body_id("a").unwrap(), sim.body_id("b").unwrap());
+    let total = |sim: &Simulation<D>| sim.body_momentum(a).unwrap() + sim.body_momentum(b).unwrap();
+    let p_start = total(&sim);
+    let mut pushed = 0;
+    for _ in 0..60 {
+        let p0 = sim.body_momentum(b).unwrap();
+        sim.step().unwrap();
+        let on_b = sim.contact_force_between(b, a).unwrap();
+        let dp = sim.body_momentum(b).unwrap() - p0;
+        assert!(
+            (dp - on_b * h).norm() <= 1e-9 * p_start.norm(),
+            "step {}: dp {dp:?} against h F {:?}",
+            sim.state().step,
+            on_b * h
+        );
+        assert!(
+            (total(&sim) - p_start).norm() <= 1e-9 * p_start.norm(),
+            "step {}: momentum {:?} against {p_start:?}",
+            sim.state().step,
+            total(&sim)
+        );
+        if on_b[0] > 0.0 {
+            pushed += 1;
+        }
+    }
+    assert!(pushed > 0, "b hit a");
+    // The impact passed momentum on: a moves the way b came.
+    assert!(sim.body_momentum(a).unwrap()[0] < 0.3 * p_start[0]);
+}
+
 /// `ContactMethod` parses the scene file's names and lists them when it cannot.
 #[test]
 fn contact_method_from_its_scene_name() {
@@ -461,6 +511,7 @@ both_dims!(
     bodies_come_and_go_between_steps,
     a_kinematic_obstacle_follows_its_poses,
     gravity_scale_and_the_fixed_timestep,
+    projection_impulses_between_bodies,
 );
 
 #[test]

@@ -10,6 +10,7 @@ use std::collections::BTreeSet;
 use nalgebra::SVector;
 
 use super::{BodyId, ObstacleId, Simulation};
+use crate::contact::methods::projection::BodyImpulse;
 use crate::contact::methods::PairOutcome;
 use crate::contact::MasterId;
 use crate::dim::{Dim, SpatialDim};
@@ -84,6 +85,9 @@ pub(super) struct ContactLog<const D: usize> {
     /// Force of each obstacle on the bodies over the last step (N), with the end-of-step
     /// projection's impulses over h.
     obstacle_forces: Vec<SVector<f64, D>>,
+    /// Explicit projection's end-of-step impulses between bodies, over the step (N): (slave
+    /// body, master body, force on the slave body).
+    projection_between: Vec<(BodyId, BodyId, SVector<f64, D>)>,
     touching: BTreeSet<Touching>,
     events: Vec<ContactEvent>,
 }
@@ -94,6 +98,7 @@ impl<const D: usize> Default for ContactLog<D> {
             points: Vec::new(),
             nodal_forces: Vec::new(),
             obstacle_forces: Vec::new(),
+            projection_between: Vec::new(),
             touching: BTreeSet::new(),
             events: Vec::new(),
         }
@@ -118,8 +123,14 @@ impl<const D: usize> Simulation<D>
 where
     Dim<D>: SpatialDim<D>,
 {
-    /// Records one converged step piece's pairs and nodal contact forces.
-    pub(super) fn log_contacts(&mut self, pairs: &[PairOutcome<D>], nodal_forces: &[f64]) {
+    /// Records one converged step piece's pairs, nodal contact forces and end-of-step
+    /// impulses between bodies.
+    pub(super) fn log_contacts(
+        &mut self,
+        pairs: &[PairOutcome<D>],
+        nodal_forces: &[f64],
+        between_bodies: &[BodyImpulse<D>],
+    ) {
         let bodies = self.body_ids();
         let obstacles = self.obstacle_ids();
         let points = pairs
@@ -143,8 +154,13 @@ where
                 }
             })
             .collect();
+        let projection_between = between_bodies
+            .iter()
+            .map(|&(slave, master, f)| (bodies[self.owner_of(slave).0], bodies[master], f))
+            .collect();
         self.contact_log.points = points;
         self.contact_log.nodal_forces = nodal_forces.to_vec();
+        self.contact_log.projection_between = projection_between;
     }
 
     /// Closes the log of a whole step: the obstacles' forces and the events.
@@ -204,18 +220,29 @@ where
     /// The force body `other` exerted on body `body` at the end of the last step (N): the
     /// sum over the points of `body` against `other` minus the points of `other` against
     /// `body` (each point's force acts on its slave and, opposite, on the master's facet).
-    /// Zero for a body with itself. The projection methods' end-of-step impulses between
-    /// bodies are not included.
+    /// Zero for a body with itself. Explicit projection's end-of-step impulses between the
+    /// two bodies are included, divided by the step.
     pub fn contact_force_between(&self, body: BodyId, other: BodyId) -> Result<SVector<f64, D>> {
         self.body_index(body)?;
         self.body_index(other)?;
         let mut f = SVector::zeros();
+        if body == other {
+            return Ok(f);
+        }
         for p in &self.contact_log.points {
             if p.body == body && p.master == ContactMaster::Body(other) {
                 f += p.force();
             }
             if p.body == other && p.master == ContactMaster::Body(body) {
                 f -= p.force();
+            }
+        }
+        for &(slave, master, force) in &self.contact_log.projection_between {
+            if slave == body && master == other {
+                f += force;
+            }
+            if slave == other && master == body {
+                f -= force;
             }
         }
         Ok(f)

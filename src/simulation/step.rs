@@ -10,7 +10,7 @@ use super::newton::{held_pairs, Solution, StepStart};
 use super::observe::{NullRecorder, Recorder};
 use super::{end_positions, invalid, Simulation, StepReport};
 use crate::assembly;
-use crate::contact::methods::projection::{project, Applied, ProjectionContext};
+use crate::contact::methods::projection::{project, Applied, BodyImpulse, ProjectionContext};
 use crate::contact::methods::{self, EndProjection, Method};
 use crate::contact::{ContactMethod, GapDisplacement, Master, ProjectionMetric};
 use crate::dim::{Dim, SpatialDim};
@@ -375,6 +375,8 @@ where
         let mut projection_dissipation = 0.0;
         // The projection's impulses on obstacles, where they act (for turning obstacles' work).
         let mut applied: Vec<Applied<D>> = Vec::new();
+        // Its impulses between bodies (for the body pairs' forces).
+        let mut between_bodies: Vec<BodyImpulse<D>> = Vec::new();
         let rule = method.end_projection();
         if rule != EndProjection::None {
             if let Some(detector) = self.caches.detector.as_mut() {
@@ -439,6 +441,7 @@ where
                         &mut v1,
                         &mut impulses,
                         &mut applied,
+                        &mut between_bodies,
                     );
                 }
                 for i in 0..ndof {
@@ -610,7 +613,7 @@ where
                 advice: self.instability_advice(!finite || !energies.total().is_finite()),
             });
         }
-        self.log_contacts(&terms.pairs, &terms.forces);
+        self.log_contacts(&terms.pairs, &terms.forces, &between_bodies);
         if let Some((x1, candidates)) = swept {
             self.sweeps.push(super::overlap::Sweep {
                 x0: start.x0,

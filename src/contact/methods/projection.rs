@@ -33,10 +33,14 @@ pub(crate) struct ProjectionContext<'a, const D: usize> {
 /// An impulse on an obstacle as a force over the step: (obstacle, master point (m), force (N)).
 pub(crate) type Applied<const D: usize> = (usize, SVector<f64, D>, SVector<f64, D>);
 
+/// An impulse between two bodies as a force over the step: (slave node, master body, force on
+/// the slave (N)); the master's facet nodes receive the opposite.
+pub(crate) type BodyImpulse<const D: usize> = (usize, usize, SVector<f64, D>);
+
 /// Projects the points of `pairs` (found in the stored end configuration) that the rule names:
 /// moves `u1` (and for [`EndProjection::PenetratingWithVelocity`] removes the approaching
 /// normal relative velocity from `v1`, adding the impulse to `contact_forces` as a force, and
-/// to `applied` with the point it acts at).
+/// to `applied` with the point it acts at, or to `between_bodies` for a facet master).
 pub(crate) fn project<const D: usize>(
     ctx: &ProjectionContext<'_, D>,
     pairs: &[ContactPair<D>],
@@ -44,6 +48,7 @@ pub(crate) fn project<const D: usize>(
     v1: &mut [f64],
     contact_forces: &mut [Vec<f64>],
     applied: &mut Vec<Applied<D>>,
+    between_bodies: &mut Vec<BodyImpulse<D>>,
 ) {
     let h = ctx.time_step;
     for p in pairs {
@@ -104,15 +109,44 @@ pub(crate) fn project<const D: usize>(
             let vs = SVector::<f64, D>::from_column_slice(&v1[s * D..s * D + D]);
             let vn = p.normal.dot(&(vs - master_velocity));
             if vn < 0.0 {
-                let dv = -p.normal * vn;
-                share(v1, &dv);
-                if let Master::Obstacle(k) = p.master {
-                    // The impulse over the step, as a force.
-                    let f = dv * (ms * slave_share / h);
-                    for i in 0..D {
-                        contact_forces[k][i] += f[i];
+                // One normal impulse J, +J on the slave and -c_i J on the facet's nodes: the
+                // relative normal velocity becomes zero and the momentum of the two bodies is
+                // kept (J = -vn / (1/ms + sum c_i^2 / m_i); a rigid master: J = -ms vn).
+                let inverse_mass = 1.0 / ms
+                    + masters
+                        .iter()
+                        .map(|&(n, c)| c * c / ctx.nodal_mass[n])
+                        .sum::<f64>();
+                let impulse = -vn / inverse_mass;
+                let kicks = ms > 0.0
+                    && masters.iter().all(|&(n, _)| ctx.nodal_mass[n] > 0.0)
+                    && impulse.is_finite();
+                if !kicks {
+                    // A massless side (a quasi-static flow): the kinematic share above.
+                    share(v1, &(-p.normal * vn));
+                    continue;
+                }
+                let j = p.normal * impulse;
+                for k in 0..D {
+                    if prescribed[s * D + k].is_none() {
+                        v1[s * D + k] += j[k] / ms;
                     }
-                    applied.push((k, p.point, f));
+                    for &(n, c) in &masters {
+                        if prescribed[n * D + k].is_none() {
+                            v1[n * D + k] -= c * j[k] / ctx.nodal_mass[n];
+                        }
+                    }
+                }
+                // The impulse over the step, as a force on the slave.
+                let f = j / h;
+                match p.master {
+                    Master::Obstacle(k) => {
+                        for i in 0..D {
+                            contact_forces[k][i] += f[i];
+                        }
+                        applied.push((k, p.point, f));
+                    }
+                    Master::Facet(facet) => between_bodies.push((s, ctx.facet_body[facet], f)),
                 }
             }
         }
