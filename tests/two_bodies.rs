@@ -1,7 +1,9 @@
 //! Contact between deformable bodies: three soft blocks (E = 1e5 Pa) dropped in a stack on a
 //! floor, each offset sideways by 1 cm from the one below, in 2D and 3D. The soft way keeps
 //! both passes between bodies at half the area each; it runs through the landing and the
-//! settling with its energy account within 2 %.
+//! settling with its energy account within 2 %. And a soft ring (E = 5e7 Pa) dropped at 2 m/s
+//! onto a softer pad (E = 5e6 Pa) lying on a rigid base: it lands, bounces off, and the
+//! energy account holds.
 
 mod common;
 
@@ -107,6 +109,139 @@ where
     assert!(error < 3e-2, "energy error {error}");
 }
 
+/// The ring drop's ring (radii 0.8 and 1 m, 64 x 4 Quad4, E = 5e7 Pa, 1000 kg/m^3, plane
+/// strain) 5 cm above a 3 m x 0.3 m pad (30 x 4 Quad4, E = 5e6 Pa) lying on a rigid base,
+/// falling at 2 m/s under gravity; run to 0.2 s, through the landing and the rebound. Returns
+/// the largest penetration, the largest energy error over the run, and the ring's kinetic
+/// energy and vertical momentum at the end.
+struct RingOnPad {
+    penetration: f64,
+    error: f64,
+    kinetic: f64,
+    momentum: f64,
+}
+
+fn ring_on_pad(settings: ContactSettings, time_step: f64) -> RingOnPad {
+    use nalgebra::Vector2;
+    let elastic = |e: f64| Material::LinearElastic(LinearElastic::new(e, 0.3, 1000.0).unwrap());
+    let ring = annulus(
+        Vector2::new(0.0, 1.35),
+        0.8,
+        1.0,
+        [64, 4],
+        ElementKind::Quad4,
+    )
+    .unwrap();
+    let pad = rectangle(
+        Vector2::new(-1.5, 0.0),
+        Vector2::new(1.5, 0.3),
+        [30, 4],
+        ElementKind::Quad4,
+    )
+    .unwrap();
+    let method = settings.method;
+    let mut sim = Simulation::<2>::builder()
+        .time_step(time_step)
+        .gravity(Vector2::new(0.0, -9.81))
+        .body(Body::new("ring", ring, elastic(5e7)).with_velocity(Vector2::new(0.0, -2.0)))
+        .body(Body::new("pad", pad, elastic(5e6)))
+        .obstacle(Obstacle::new(
+            "base",
+            ObstacleShape::Halfspace {
+                point: Vector2::zeros(),
+                normal: Vector2::new(0.0, 1.0),
+            },
+        ))
+        .contact(settings)
+        .build()
+        .unwrap();
+    let ring = sim.body_id("ring").unwrap();
+    let (mut penetration, mut error) = (0.0_f64, 0.0_f64);
+    while sim.state().time < 0.2 - 1e-9 {
+        let r = sim
+            .step()
+            .unwrap_or_else(|e| panic!("{method:?}, t = {}: {e}", sim.state().time));
+        penetration = penetration.max(r.max_penetration);
+        error = error.max(energy_error(&sim));
+    }
+    let momentum = sim.body_momentum(ring).unwrap();
+    let v = &sim.state().velocity;
+    let mv = sim.mass_matrix().mul(v);
+    let kinetic: f64 = sim
+        .body_nodes(ring)
+        .unwrap()
+        .flat_map(|n| [2 * n, 2 * n + 1])
+        .map(|i| 0.5 * v[i] * mv[i])
+        .sum();
+    eprintln!(
+        "ring on pad, {method:?}, h = {time_step:e} s: penetration {penetration:.3e} m, \
+         largest energy error {error:.2e}, ring's kinetic energy {kinetic:.1} J, momentum {:.1} \
+         kg m/s",
+        momentum[1]
+    );
+    RingOnPad {
+        penetration,
+        error,
+        kinetic,
+        momentum: momentum[1],
+    }
+}
+
+/// The soft way at the default step: the ring lands (2 m/s), bounces off and rises at 0.2 s.
+/// Measured: penetration 7.8e-4 m, largest energy error 1.17e-2 (the penalty's unbooked loss),
+/// the ring's kinetic energy 1213 J and momentum 1517 kg m/s (per metre). (The issue's report
+/// of a ring on a pad was a 35-fold gain, exit 0.)
+#[test]
+fn a_soft_ring_dropped_on_a_soft_pad_soft_way() {
+    let r = ring_on_pad(
+        ContactSettings {
+            method: ContactMethod::SoftWay,
+            penalty: 1e9,
+            ..ContactSettings::default()
+        },
+        1e-3,
+    );
+    assert!(r.error < 1.5e-2, "energy error {}", r.error);
+    // A hundredth of the ring's outer facet (0.098 m).
+    assert!(r.penetration < 1e-3, "penetration {}", r.penetration);
+    assert!(
+        r.momentum > 0.0,
+        "the ring bounced: momentum {}",
+        r.momentum
+    );
+    // Implicit projection at half the step (below): 1179 J and 1500 kg m/s.
+    assert!(
+        (r.kinetic - 1195.0).abs() < 50.0,
+        "kinetic energy {}",
+        r.kinetic
+    );
+    assert!(
+        (r.momentum - 1510.0).abs() < 40.0,
+        "momentum {}",
+        r.momentum
+    );
+}
+
+/// Implicit projection (the default method) at half the default step: it lands and bounces
+/// as the soft way does, with no penetration. Measured: penetration 6e-6 m, largest energy
+/// error 4.8e-3. (At the default step: `open`.)
+#[test]
+fn a_soft_ring_dropped_on_a_soft_pad_implicit_projection_half_step() {
+    let r = ring_on_pad(ContactSettings::default(), 5e-4);
+    assert!(r.error < 1e-2, "energy error {}", r.error);
+    assert!(r.penetration < 1e-5, "penetration {}", r.penetration);
+    assert!(
+        (r.kinetic - 1195.0).abs() < 50.0,
+        "kinetic energy {}",
+        r.kinetic
+    );
+    assert!(
+        (r.momentum - 1510.0).abs() < 40.0,
+        "momentum {}",
+        r.momentum
+    );
+}
+
 mod d2 {
     #[test]
     fn a_stack_of_soft_blocks_lands_and_settles() {
@@ -153,7 +288,19 @@ mod d3 {
 }
 
 mod open {
-    use softway::contact::{ContactMethod, GapDisplacement};
+    use softway::contact::{ContactMethod, ContactSettings, GapDisplacement};
+
+    /// The issue's target: the default method at the default step keeps the account.
+    #[test]
+    #[ignore = "known defect (issue 10, energy pumped by cut steps): implicit projection at \
+                the default step cuts 50 of the first 591 steps and the energy grows until \
+                the run stops, 1778 % above the input (softway run exits 3); at half the step \
+                (4 cuts) the account holds to 3.5e-3"]
+    fn a_soft_ring_dropped_on_a_soft_pad_implicit_projection() {
+        let r = super::ring_on_pad(ContactSettings::default(), 1e-3);
+        assert!(r.error < 1e-2, "energy error {}", r.error);
+    }
+
     #[test]
     #[ignore = "runs to the end and its account closes to 1.08e-2, but the upper block's \
                 edge sinks 3.44e-3 m into the lower one: one pass holds only the lower \
