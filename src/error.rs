@@ -121,6 +121,31 @@ pub enum Error {
         /// magnitudes.
         advice: String,
     },
+    /// Implicit projection's contact set cycled and the points it held closed to end the step
+    /// pull with more than [`HELD_TENSION_FAILURE`](crate::simulation::HELD_TENSION_FAILURE)
+    /// of what the step's other contact points push with: the contact answer is mostly
+    /// adhesion that is not there.
+    #[error(
+        "contact set cycling at step {step} (t = {time:.6e} s): {held} point(s) held closed \
+         until the step's end pull with {tension:.3e} N against {compression:.3e} N of \
+         compression at the other contact points (the run stops above {limit}%); use a \
+         smaller time_step, or the soft way (contact.method = \"soft_way\"), whose contact \
+         set does not cycle"
+    )]
+    ContactCycling {
+        /// Step number (1-based).
+        step: usize,
+        /// Time at the end of the step (s).
+        time: f64,
+        /// Points held until the step's end.
+        held: usize,
+        /// Their tension (N).
+        tension: f64,
+        /// The other points' compressive normal forces (N).
+        compression: f64,
+        /// The limit, in percent of the compression.
+        limit: f64,
+    },
     /// The run created energy: kinetic + internal + contact energy plus the dissipated energy
     /// exceeded the input (E(0) + |external work|) by more than
     /// [`ENERGY_FAILURE`](crate::simulation::ENERGY_FAILURE) of it.

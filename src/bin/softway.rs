@@ -598,6 +598,7 @@ where
                 Error::NotConverged { .. }
                 | Error::Unstable { .. }
                 | Error::EnergyCreated { .. }
+                | Error::ContactCycling { .. }
                 | Error::FellThrough { .. }
                 | Error::Tunnelled { .. }
                 | Error::InvertedCell { .. }

@@ -38,7 +38,10 @@ pub use contacts::{ContactEvent, ContactMaster, ContactPoint, Touching};
 pub use fixed_timestep::{FixedTimestep, FrameReport};
 pub use handles::{BodyId, ObstacleId, Slots};
 pub use model::{Body, Constraint, MassKind, Model, RayleighDamping, Settings};
-pub use monitor::{energy_created, Overlap, RunMonitor, Tunnel, ENERGY_FAILURE, ENERGY_WARNING};
+pub use monitor::{
+    energy_created, Overlap, RunMonitor, Tunnel, ENERGY_FAILURE, ENERGY_WARNING,
+    HELD_TENSION_FAILURE,
+};
 pub use rotation::SMALL_STRAIN_ROTATION_LIMIT;
 pub use state::{ContactMemory, FactorRecord, MasterId, State};
 pub use symmetric_matrix::SymmetricMatrix;
@@ -113,6 +116,16 @@ pub struct StepReport {
     /// methods; the largest count of the pieces of a cut step.
     #[serde(default)]
     pub held_contacts: usize,
+    /// The tension (N) that the points held closed carry at the end of the step (they would
+    /// have been released): the adhesion a cycle's compromise leaves; 0 for the other
+    /// methods. For a cut step, that of the piece where it was the largest part of
+    /// [`StepReport::compression`].
+    #[serde(default)]
+    pub held_tension: f64,
+    /// The sum of the compressive normal forces (N) of the step's other contact points (the
+    /// piece's of [`StepReport::held_tension`]).
+    #[serde(default)]
+    pub compression: f64,
     /// Times implicit projection's active set came back to a set already seen in the step
     /// (a cycle), over every attempt of the step, the cut ones included. 0 for the other
     /// methods.

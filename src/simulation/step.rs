@@ -156,6 +156,12 @@ where
                 second.iterations += first.iterations;
                 second.cuts += first.cuts + 1;
                 second.held_contacts = second.held_contacts.max(first.held_contacts);
+                if first.held_tension / first.compression.max(f64::MIN_POSITIVE)
+                    > second.held_tension / second.compression.max(f64::MIN_POSITIVE)
+                {
+                    (second.held_tension, second.compression) =
+                        (first.held_tension, first.compression);
+                }
                 second.globalized |= first.globalized;
                 second.time_step = h;
                 for (a, b) in second.reactions.iter_mut().zip(&first.reactions) {
@@ -624,6 +630,15 @@ where
                 candidates,
             });
         }
+        // What the points held closed pull with (their tension, N) against what the step's
+        // contacts push with: the price of a cycle's compromise.
+        let (held_tension, compression) = terms.pairs.iter().fold((0.0, 0.0), |(t, c), p| {
+            if vars.locked.contains(&p.key) && p.normal_force < 0.0 {
+                (t - p.normal_force, c)
+            } else {
+                (t, c + p.normal_force.max(0.0))
+            }
+        });
         let report = StepReport {
             step,
             time: t0 + h,
@@ -639,6 +654,8 @@ where
             cuts: 0,
             globalized: false,
             held_contacts: vars.locked.len(),
+            held_tension,
+            compression,
             contact_cycles: 0,
         };
         recorder.step_end(self, &report);
