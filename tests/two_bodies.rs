@@ -121,6 +121,23 @@ struct RingOnPad {
     momentum: f64,
 }
 
+impl RingOnPad {
+    /// The ring's rebound at 0.2 s: the soft way at the default step measured 1213 J and
+    /// 1517 kg m/s (per metre), implicit projection at half the step 1179 J and 1500 kg m/s.
+    fn rebounds_as_both_methods_do(&self) {
+        assert!(
+            (self.kinetic - 1195.0).abs() < 50.0,
+            "kinetic energy {}",
+            self.kinetic
+        );
+        assert!(
+            (self.momentum - 1510.0).abs() < 40.0,
+            "momentum {}",
+            self.momentum
+        );
+    }
+}
+
 fn ring_on_pad(settings: ContactSettings, time_step: f64) -> RingOnPad {
     use nalgebra::Vector2;
     let elastic = |e: f64| Material::LinearElastic(LinearElastic::new(e, 0.3, 1000.0).unwrap());
@@ -209,17 +226,7 @@ fn a_soft_ring_dropped_on_a_soft_pad_soft_way() {
         "the ring bounced: momentum {}",
         r.momentum
     );
-    // Implicit projection at half the step (below): 1179 J and 1500 kg m/s.
-    assert!(
-        (r.kinetic - 1195.0).abs() < 50.0,
-        "kinetic energy {}",
-        r.kinetic
-    );
-    assert!(
-        (r.momentum - 1510.0).abs() < 40.0,
-        "momentum {}",
-        r.momentum
-    );
+    r.rebounds_as_both_methods_do();
 }
 
 /// Implicit projection (the default method) at half the default step: it lands and bounces
@@ -230,16 +237,7 @@ fn a_soft_ring_dropped_on_a_soft_pad_implicit_projection_half_step() {
     let r = ring_on_pad(ContactSettings::default(), 5e-4);
     assert!(r.error < 1e-2, "energy error {}", r.error);
     assert!(r.penetration < 1e-5, "penetration {}", r.penetration);
-    assert!(
-        (r.kinetic - 1195.0).abs() < 50.0,
-        "kinetic energy {}",
-        r.kinetic
-    );
-    assert!(
-        (r.momentum - 1510.0).abs() < 40.0,
-        "momentum {}",
-        r.momentum
-    );
+    r.rebounds_as_both_methods_do();
 }
 
 mod d2 {
