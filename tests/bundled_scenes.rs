@@ -5,7 +5,7 @@
 //! lets a body fall through an obstacle (issue 14).
 #![cfg(feature = "formats")]
 
-mod common;
+use crate::common;
 
 use softway::dim::{Dim, SpatialDim};
 use softway::Simulation;

@@ -2,7 +2,7 @@
 //! wall (Hughes et al. 1976), two bars hitting head on, blocks on an incline with Coulomb,
 //! Tresca and viscoplastic friction, and the energy account.
 
-mod common;
+use crate::common;
 
 use common::verify::record;
 use common::{block, vec_d};

@@ -2,7 +2,7 @@
 //! exp(-a t); an oscillator's amplitude decays at (a + b omega^2)/2 with the damped period; the
 //! energy account books what the damping removes.
 
-mod common;
+use crate::common;
 
 use common::verify::record;
 use common::{block, energy_error, vec_d};

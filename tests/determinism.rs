@@ -3,8 +3,7 @@
 //! assembly and detection write per-cell and per-candidate chunks summed in a fixed order).
 #![cfg(feature = "parallel")]
 
-#[macro_use]
-mod common;
+use crate::common;
 
 use common::{block, vec_d};
 use softway::contact::ObstacleShape;

@@ -3,8 +3,7 @@
 //! step, contact forces per obstacle, per body pair and per node checked against the change of
 //! momentum, contact events, per-body gravity, the fixed-timestep driver, `Send + Sync`.
 
-#[macro_use]
-mod common;
+use crate::common;
 
 use common::{block, vec_d};
 use nalgebra::{SMatrix, SVector};

@@ -1,7 +1,7 @@
 //! The foundation: elements, assembly and the space-time velocity step against analytic
 //! solutions and conserved quantities, each in 2D and 3D.
 
-mod common;
+use crate::common;
 
 use common::verify::record;
 use common::{block, dense, vec_d};

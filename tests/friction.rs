@@ -6,7 +6,7 @@
 //! resolves the block; the bundled ring drop runs through its landing with Coulomb 0.3 and
 //! dissipates.
 
-mod common;
+use crate::common;
 
 use common::verify::record;
 use common::{block, energy_error, vec_d};

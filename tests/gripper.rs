@@ -2,7 +2,7 @@
 //! hold it, then both move up; the block rises with them. Default scheme and contact method
 //! (implicit projection), and each method that carries friction, in 2D and 3D.
 
-mod common;
+use crate::common;
 
 use common::{block, vec_d};
 use softway::contact::{FrictionLaw, MotionSegment, ObstacleShape};

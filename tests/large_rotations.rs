@@ -2,7 +2,7 @@
 //! 3D: a body spinning freely through a full turn stays unstressed and comes back to where it
 //! started; the small-strain law does not (its nodes leave on straight lines).
 
-mod common;
+use crate::common;
 
 use common::{block, energy_error};
 use softway::dim::{Dim, SpatialDim};

@@ -2,7 +2,7 @@
 //! statically with the assembled stiffness (K u = f), against Timoshenko's tip deflection, at
 //! nu = 0.3 and nearly incompressible nu = 0.499, with Quad4 (plane strain) and Hex8.
 
-mod common;
+use crate::common;
 
 use common::block;
 use common::verify::record;
@@ -76,7 +76,7 @@ where
     ratio
 }
 
-/// Measured (`cargo test --release --all-features --test locking -- --nocapture`): 0.960 at
+/// Measured (`cargo test --release --all-features --test suite locking:: -- --nocapture`): 0.960 at
 /// nu = 0.3 (full integration), 1.003 at nu = 0.499 (B-bar; 0.114 with full integration).
 #[test]
 fn quad4_cantilever_does_not_lock() {

@@ -5,7 +5,7 @@
 //! the tunnelling watch (a block through a thin box, a small ball, a thin closed trimesh
 //! within one step).
 
-mod common;
+use crate::common;
 
 use common::{block, vec_d};
 use softway::contact::{ContactMethod, ContactSettings, Obstacle, ObstacleShape};

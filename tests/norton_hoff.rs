@@ -2,7 +2,7 @@
 //! (axisymmetric) and of a square bar (3D), quasi-static (rho = 0), against the homogeneous
 //! solution F = sigma_0(eps_dot) A(t); with friction the block barrels and needs more force.
 
-mod common;
+use crate::common;
 
 use nalgebra::{Vector2, Vector3};
 use softway::dim::{Dim, Kinematics, SpatialDim};

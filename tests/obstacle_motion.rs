@@ -3,7 +3,7 @@
 //! obstacle stops after the last piece, and a plate driven down then held compresses a block
 //! by what it travelled.
 
-mod common;
+use crate::common;
 
 use common::{block, vec_d};
 use softway::contact::{MotionSegment, ObstacleShape};

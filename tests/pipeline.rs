@@ -2,7 +2,7 @@
 //! leaves the simulation bit for bit as it was, a retry continues exactly as an uninterrupted
 //! run, and a simulation rebuilt from its model and a state continues bit for bit.
 
-mod common;
+use crate::common;
 
 use common::{block, vec_d};
 use softway::contact::{ContactMethod, ContactSettings, FrictionLaw, Obstacle, ObstacleShape};

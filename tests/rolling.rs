@@ -1,7 +1,7 @@
 //! A ring rolling down a slope without slipping: large rotations (the hypoelastic law) and
 //! Coulomb friction in stick together, in 2D and 3D, under each contact method.
 
-mod common;
+use crate::common;
 
 use common::vec_d;
 use nalgebra::Vector2;
@@ -176,7 +176,7 @@ macro_rules! per_method {
     };
 }
 
-// Measured (release, `cargo test --release --all-features --test rolling -- --nocapture
+// Measured (release, `cargo test --release --all-features --test suite rolling:: -- --nocapture
 // --include-ignored`): acceleration -0.18 % / -0.08 % / -0.33 % (2D soft way / augmented
 // Lagrangian / implicit projection), -0.42 % / -0.07 % / -0.39 % (3D); turn within 0.9 % of
 // travel / R; 3.6 / 8.3 / 6.4 (2D) and 4.0 / 9.1 / 7.3 (3D) Newton iterations per step. Three

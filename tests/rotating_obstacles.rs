@@ -16,7 +16,7 @@
 //! * scene files: `angular_velocity` and `pivot` are read; a wrong length or NaN is refused
 //!   naming the key.
 
-mod common;
+use crate::common;
 
 use common::{block, energy_error, vec_d};
 use nalgebra::{Rotation2, Rotation3, SMatrix, SVector, Vector3};

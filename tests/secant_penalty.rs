@@ -2,7 +2,7 @@
 //! potential) on trapezoid gaps: a free elastic block thrown against a rigid floor (no gravity)
 //! bounces off with the energy it came with, where the paper's end-of-step pressure loses some.
 
-mod common;
+use crate::common;
 
 use common::{block, vec_d};
 use softway::contact::{

@@ -15,10 +15,10 @@
 //!   the energy reference, and the account closes to [`ACCOUNT`];
 //! * control: with `self_contact` off the same press drives the arms through each other.
 //!
-//! `cargo test --all-features --test self_contact -- --nocapture` prints the figures
+//! `cargo test --all-features --test suite self_contact:: -- --nocapture` prints the figures
 //! (`--include-ignored` for the open cases; `SELF_DEBUG=1` prints every iteration and step).
 
-mod common;
+use crate::common;
 
 use common::{block, energy_error};
 use softway::contact::{ContactMethod, ContactSettings, MotionSegment, Obstacle, ObstacleShape};

@@ -5,7 +5,7 @@
 //! deep (one step's travel at impact), with `GapDisplacement::Trapezoid` the soft way keeps it
 //! within 0.25 mm.
 
-mod common;
+use crate::common;
 
 use common::{block, vec_d};
 use softway::contact::{ContactMethod, ContactSettings, GapDisplacement, Obstacle, ObstacleShape};

@@ -4,7 +4,7 @@
 //! modes the step does not resolve (a known defect: the contact chapter, "A stalled Newton is
 //! retried").
 
-mod common;
+use crate::common;
 
 use softway::contact::{GapDisplacement, PenaltyForce};
 use softway::prelude::*;

@@ -4,8 +4,8 @@
 //! 7800 kg/m^3), its base held, crushed by a plate at 50 m/s over 30 mm (h = 1 us), with
 //! self-contact, under implicit projection and the soft way (zeta = 1e13 Pa/m). A fold forms
 //! under the plate and touches itself (1 or 2 points); the run ends and the energy account
-//! closes. `cargo test --all-features --test tube_crush -- --nocapture` prints the figures.
-mod common;
+//! closes. `cargo test --all-features --test suite tube_crush:: -- --nocapture` prints the figures.
+use crate::common;
 use nalgebra::Vector2;
 use softway::contact::{ContactMethod, ContactSettings, Obstacle, ObstacleShape};
 use softway::material::NortonHoff;

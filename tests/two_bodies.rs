@@ -5,7 +5,7 @@
 //! onto a softer pad (E = 5e6 Pa) lying on a rigid base: it lands, bounces off, and the
 //! energy account holds.
 
-mod common;
+use crate::common;
 
 use common::{block, energy_error, vec_d};
 use softway::contact::{ContactMethod, ContactSettings, GapDisplacement, Obstacle, ObstacleShape};
