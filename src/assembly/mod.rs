@@ -592,4 +592,6 @@ where
 }
 
 #[cfg(test)]
+mod bbar_tests;
+#[cfg(test)]
 mod tests;

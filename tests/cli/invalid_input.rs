@@ -269,6 +269,107 @@ fn out_of_range_numbers() {
     );
 }
 
+/// Issue 11: the Norton-Hoff parameters and the hypoelastic rotation update.
+#[test]
+fn material_laws() {
+    let cases = [
+        (
+            "exponent_zero",
+            "bodies.0.material.exponent",
+            "exponent = 0.0",
+            "0",
+            "a value in (0, 1]",
+        ),
+        (
+            "exponent_above_one",
+            "bodies.0.material.exponent",
+            "exponent = 1.5",
+            "1.5",
+            "a value in (0, 1]",
+        ),
+        (
+            "consistency_zero",
+            "bodies.0.material.consistency",
+            "consistency = 0.0",
+            "0",
+            "a finite value > 0 [Pa s^m]",
+        ),
+        (
+            "consistency_negative",
+            "bodies.0.material.consistency",
+            "consistency = -1.0",
+            "-1",
+            "a finite value > 0 [Pa s^m]",
+        ),
+        (
+            "rotation_unknown",
+            "bodies.0.material.rotation",
+            "rotation = \"bogus\"",
+            "\"bogus\"",
+            "\"hughes_winget\" (exactly orthogonal, the default) or \"paper_series\"",
+        ),
+    ];
+    for (name, key, marker, found, expected) in cases {
+        assert_bad_scene(
+            name,
+            Expect {
+                key,
+                marker: Some(marker),
+                found,
+                expected,
+            },
+        );
+    }
+}
+
+/// The accepted side of the same checks: the closed end m = 1, both rotation updates by name
+/// and the default (no `rotation` key), each one the scene's only change from a bad fixture.
+#[test]
+fn material_laws_accepted() {
+    use softway::material::{Material, RotationUpdate};
+    let accepted = |name: &str, set: &str| {
+        let file = bad(name);
+        let dir = tempdir();
+        let o = run_in(dir.path(), &["check", file.to_str().unwrap(), "--set", set]);
+        assert_eq!(o.status.code(), Some(0), "{set}: {}", stderr(&o));
+        let scene = softway::io::scene::load(&file, &[set.to_string()])
+            .and_then(|s| s.build::<2>())
+            .unwrap();
+        scene.bodies[0].material
+    };
+    let m = accepted("exponent_above_one", "bodies.0.material.exponent = 1.0");
+    assert!(
+        matches!(m, Material::NortonHoff(l) if l.exponent == 1.0),
+        "{m:?}"
+    );
+    let m = accepted("consistency_zero", "bodies.0.material.consistency = 1.0e6");
+    assert!(
+        matches!(m, Material::NortonHoff(l) if l.consistency == 1e6),
+        "{m:?}"
+    );
+    for (set, rotation) in [
+        (
+            "bodies.0.material.rotation = \"paper_series\"",
+            RotationUpdate::PaperSeries,
+        ),
+        (
+            "bodies.0.material.rotation = \"hughes_winget\"",
+            RotationUpdate::HughesWinget,
+        ),
+        (
+            "bodies.0.material = { model = \"hypoelastic\", youngs_modulus = 1.0e6, \
+             poissons_ratio = 0.3, density = 1000.0 }",
+            RotationUpdate::HughesWinget,
+        ),
+    ] {
+        let m = accepted("rotation_unknown", set);
+        assert!(
+            matches!(m, Material::Hypoelastic(l) if l.rotation == rotation),
+            "{set}: {m:?}"
+        );
+    }
+}
+
 #[test]
 fn bad_meshes() {
     let mesh_line = Some("mesh = ");
