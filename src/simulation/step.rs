@@ -141,12 +141,20 @@ where
             }
         }
         match attempt {
-            Err(Error::NotConverged { .. } | Error::InvertedCell { .. }) if depth < MAX_CUTS => {
+            // A factorisation that fails mid-step is cut too: the iteration matrix is the mass
+            // over (alpha h)^2 plus the tangent, so a smaller step restores a positive definite
+            // one where compression (the geometric stiffness) or a collapsing cell made the
+            // tangent indefinite.
+            Err(
+                Error::NotConverged { .. }
+                | Error::InvertedCell { .. }
+                | Error::Factorization { .. },
+            ) if depth < MAX_CUTS => {
                 recorder.log(
                     self,
                     &format!(
-                        "step {} at t = {:.6e} s: no convergence (or a cell turned inside out) \
-                         with h = {h:.3e} s, cutting it in two",
+                        "step {} at t = {:.6e} s: no convergence, a cell turned inside out or \
+                         an indefinite iteration matrix with h = {h:.3e} s, cutting it in two",
                         self.state.step + 1,
                         self.state.time
                     ),
@@ -176,6 +184,10 @@ where
                 }
                 Ok(second)
             }
+            Err(Error::Factorization { step, message }) => Err(Error::Factorization {
+                step,
+                message: format!("{message}; still so with the step cut to {h:.3e} s"),
+            }),
             other => other,
         }
     }

@@ -271,7 +271,8 @@ impl SparseCholesky {
                 let what = format!("pivot {index} of the factorisation is not positive");
                 failure(format!(
                     "{what}: the iteration matrix is not positive definite (a body with \
-                     no mass and no support, or a non-physical material)"
+                     no mass and no support, a non-physical material, or once the run is under \
+                     way a body compressed past its buckling load or a collapsing cell)"
                 ))
             })?;
         Ok(values)

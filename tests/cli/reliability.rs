@@ -660,7 +660,7 @@ fn inverted_cell_names_the_gmsh_element_tag() {
 }
 
 /// A body of almost no mass: the factorisation fails, in words (it printed faer's
-/// `NonPositivePivot { index: 1 }`).
+/// `NonPositivePivot { index: 1 }`), after the step was cut (no cut helps here).
 #[test]
 fn factorisation_failure_names_no_solver_type() {
     let dir = tempdir();
@@ -681,10 +681,13 @@ fn factorisation_failure_names_no_solver_type() {
     let err = error_line(&o);
     assert!(
         err.starts_with("error: factorisation failed at step 1: pivot ")
-            && err.ends_with(
+            && err.contains(
                 " of the factorisation is not positive: the iteration matrix is not positive \
-                 definite (a body with no mass and no support, or a non-physical material)"
-            ),
+                 definite (a body with no mass and no support, a non-physical material, or once \
+                 the run is under way a body compressed past its buckling load or a collapsing \
+                 cell); still so with the step cut to "
+            )
+            && err.ends_with(" s"),
         "{err}"
     );
 }
