@@ -222,9 +222,9 @@ where
 
 /// A bar of the hypoelastic law given a compressive stress of a tenth of its modulus along
 /// its length (through the state's material history) at a step where the iteration matrix
-/// `M / (alpha h)^2 + K` is not positive definite: the compression's geometric stiffness
+/// `M / h + alpha^2 h K / 2` is not positive definite: the compression's geometric stiffness
 /// outweighs the mass term in the bar's bending modes. The factorisation fails; the step is
-/// cut (a halved step quadruples the mass term) and the run goes on, where it stopped with
+/// cut (a halved step quadruples the mass's share) and the run goes on, where it stopped with
 /// "factorisation failed" at step 3 (2D) and 2 (3D). The bar, free and unbalanced at its ends,
 /// then springs out to 1.19 m (2D) and 1.21 m (3D), twice the static strain's 1.1 m (6
 /// and 5 cuts in ten steps, measured).

@@ -141,10 +141,10 @@ where
             }
         }
         match attempt {
-            // A factorisation that fails mid-step is cut too: the iteration matrix is the mass
-            // over (alpha h)^2 plus the tangent, so a smaller step restores a positive definite
-            // one where compression (the geometric stiffness) or a collapsing cell made the
-            // tangent indefinite.
+            // A factorisation that fails mid-step is cut too: the iteration matrix is
+            // M / h + alpha^2 h K / 2, so a halved step quadruples the mass's share and restores
+            // a positive definite matrix where compression (the geometric stiffness) or a
+            // collapsing cell made the tangent indefinite.
             Err(
                 Error::NotConverged { .. }
                 | Error::InvertedCell { .. }
