@@ -56,11 +56,7 @@ where
         }
     }
     let start = mesh.nodes.clone();
-    let w: Vec<f64> = if D == 2 {
-        vec![omega]
-    } else {
-        vec![0.0, 0.0, omega]
-    };
+    let w = about_z::<D>(omega);
     let mut sim = Simulation::<D>::builder()
         .time_step(h)
         .body(
@@ -320,11 +316,7 @@ where
             .collect();
         let material =
             Material::Hypoelastic(Hypoelastic::new(modulus, 0.3, density, rotation).unwrap());
-        let w: Vec<f64> = if D == 2 {
-            vec![omega]
-        } else {
-            vec![0.0, 0.0, omega]
-        };
+        let w = about_z::<D>(omega);
         let mut sim = Simulation::<D>::builder()
             .time_step(h)
             .body(Body::new("ring", mesh, material).with_angular_velocity(&w))
@@ -385,4 +377,13 @@ where
         (measured[0] - measured[1]).abs() < 0.01 * measured[0],
         "{measured:?}"
     );
+}
+
+/// An angular velocity `omega` (rad/s) about z: the scalar in 2D, the vector in 3D.
+fn about_z<const D: usize>(omega: f64) -> Vec<f64> {
+    if D == 2 {
+        vec![omega]
+    } else {
+        vec![0.0, 0.0, omega]
+    }
 }

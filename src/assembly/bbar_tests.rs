@@ -50,24 +50,11 @@ fn noise(seed: u64) -> impl FnMut() -> f64 {
 
 fn distorted<const D: usize>(kind: ElementKind) -> Cell<D> {
     let mut rand = noise(kind.nodes() as u64 * 31 + D as u64);
-    let corners: Vec<[f64; 3]> = match kind {
-        ElementKind::Quad4 => vec![
-            [0.0, 0.0, 0.0],
-            [1.0, 0.1, 0.0],
-            [1.2, 0.9, 0.0],
-            [0.1, 1.0, 0.0],
-        ],
-        ElementKind::Hex8 => {
-            let mut c = Vec::new();
-            for z in [0.0, 1.0] {
-                for (x, y) in [(0.0, 0.0), (1.0, 0.0), (1.0, 1.0), (0.0, 1.0)] {
-                    c.push([x + 0.05 * y * z, y + 0.1 * x * z, z + 0.05 * x]);
-                }
-            }
-            c
-        }
-        _ => unreachable!("B-bar is for Quad4 and Hex8"),
-    };
+    assert!(
+        matches!(kind, ElementKind::Quad4 | ElementKind::Hex8),
+        "B-bar is for Quad4 and Hex8"
+    );
+    let corners = super::tests::corners(kind);
     // Every node moved by up to 0.1 m more, and the cell moved off the axis (r in [0.9, 2.3]).
     let x: Vec<SVector<f64, D>> = corners
         .iter()

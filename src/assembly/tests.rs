@@ -77,13 +77,9 @@ where
     (at(1.0) - at(-1.0)) / (2.0 * eps)
 }
 
-/// A slightly distorted cell of `kind` away from the axis, a start displacement that turns
-/// and stretches it, and a pre-stress of `stress` Pa in every component.
-fn setup<const D: usize>(
-    kind: ElementKind,
-    stress: f64,
-) -> (Vec<SVector<f64, D>>, Vec<f64>, Vec<f64>) {
-    let corners: Vec<[f64; 3]> = match kind {
+/// The corners of a slightly distorted cell of `kind` (m), shared with `bbar_tests`.
+pub(super) fn corners(kind: ElementKind) -> Vec<[f64; 3]> {
+    match kind {
         ElementKind::Tri3 => vec![[0.0, 0.0, 0.0], [1.0, 0.1, 0.0], [0.2, 0.9, 0.0]],
         ElementKind::Quad4 => vec![
             [0.0, 0.0, 0.0],
@@ -106,7 +102,16 @@ fn setup<const D: usize>(
             }
             c
         }
-    };
+    }
+}
+
+/// A slightly distorted cell of `kind` away from the axis, a start displacement that turns
+/// and stretches it, and a pre-stress of `stress` Pa in every component.
+fn setup<const D: usize>(
+    kind: ElementKind,
+    stress: f64,
+) -> (Vec<SVector<f64, D>>, Vec<f64>, Vec<f64>) {
+    let corners = corners(kind);
     // Off the axis (axisymmetric kinematics need r > 0).
     let x: Vec<SVector<f64, D>> = corners
         .iter()

@@ -246,17 +246,7 @@ fn out_of_range_numbers() {
             "> 0 [Pa/m]",
         ),
     ];
-    for (name, key, marker, found, expected) in cases {
-        assert_bad_scene(
-            name,
-            Expect {
-                key,
-                marker: Some(marker),
-                found,
-                expected,
-            },
-        );
-    }
+    assert_bad_scenes(&cases);
     // A penalty has no default: soft_way without one points at [contact].
     assert_bad_scene(
         "soft_way_without_penalty",
@@ -309,17 +299,7 @@ fn material_laws() {
             "\"hughes_winget\" (exactly orthogonal, the default) or \"paper_series\"",
         ),
     ];
-    for (name, key, marker, found, expected) in cases {
-        assert_bad_scene(
-            name,
-            Expect {
-                key,
-                marker: Some(marker),
-                found,
-                expected,
-            },
-        );
-    }
+    assert_bad_scenes(&cases);
 }
 
 /// The accepted side of the same checks: the closed end m = 1, both rotation updates by name

@@ -139,3 +139,18 @@ pub(crate) fn assert_bad_scene(name: &str, e: Expect) {
     let err3 = assert_invalid(dir.path(), &["check", path]);
     assert_eq!(err, err3, "{name}: `check` gives the same message as `run`");
 }
+
+/// `assert_bad_scene` for each (file, key, line marker, found, expected).
+pub(crate) fn assert_bad_scenes(cases: &[(&str, &str, &str, &str, &str)]) {
+    for &(name, key, marker, found, expected) in cases {
+        assert_bad_scene(
+            name,
+            Expect {
+                key,
+                marker: Some(marker),
+                found,
+                expected,
+            },
+        );
+    }
+}
