@@ -16,15 +16,21 @@
 //!   free sides keep it below the second;
 //! * the energy account (the die's work against the dissipation of the flow and of friction)
 //!   within 2 % of its reference;
-//! * the equivalent strain (the paper's Fig. 11 plots it) is largest under the die's edge:
-//!   the largest cell value is at least twice the mean, and the mean lies below the
-//!   homogeneous compression's `ln(H0 / H)` (the corner the die never reaches barely flows).
+//! * the equivalent strain (the paper's Fig. 11 plots it) concentrates: the largest cell value
+//!   is at least twice the mean, and the mean lies below the homogeneous compression's
+//!   `ln(H0 / H)` (the dead zone under the die's middle and the corner the die never reaches
+//!   barely flow; the band from the die's edge to the billet's centre takes the strain, the
+//!   centre most).
 //!
 //! Printed: Newton iterations per step against the paper's 5 to 8.
 //!
+//! `--figure FILE.svg` draws the end's deformed mesh, every cell filled with its equivalent
+//! strain on a viridis-like colour map, the undeformed outline and the die's face (the book's
+//! `book/src/images/octagon_strain.svg`, the paper's Fig. 11).
+//!
 //! Run: `cargo run --features formats --example octagon_compression [-- --end-time 30]
-//! [--set contact.method="augmented_lagrangian"] [--rerun octagon.rrd]` (the whole scene, 30
-//! increments, by default; under a second in release). The VTK frames with the equivalent
+//! [--set contact.method="augmented_lagrangian"] [--rerun octagon.rrd] [--figure FILE.svg]`
+//! (the whole scene, 30 increments, by default; under a second in release). The VTK frames with the equivalent
 //! strain as cell data: `softway run fixtures/scenes/octagon_compression.toml --out octagon`.
 //! Its test, the first 10 increments: `cargo test --features formats --example
 //! octagon_compression`.
@@ -55,6 +61,8 @@ struct Options {
     overrides: Vec<String>,
     /// Record every solver iteration to this Rerun file.
     rerun: Option<PathBuf>,
+    /// Draw the end's deformed mesh coloured by the equivalent strain into this SVG file.
+    figure: Option<PathBuf>,
 }
 
 impl Default for Options {
@@ -63,6 +71,7 @@ impl Default for Options {
             end_time: 30.0,
             overrides: Vec::new(),
             rerun: None,
+            figure: None,
         }
     }
 }
@@ -86,6 +95,8 @@ struct Summary {
     energy_account: f64,
     /// The cells' equivalent strain: smallest, mean (by cell), largest.
     strain: (f64, f64, f64),
+    /// The figure drawn, if asked for.
+    figure: Option<PathBuf>,
 }
 
 fn scene_path() -> PathBuf {
@@ -129,6 +140,9 @@ fn run(options: &Options) -> Result<Summary, Failure> {
     let mean = strains.iter().sum::<f64>() / strains.len() as f64;
     let low = strains.iter().copied().fold(f64::INFINITY, f64::min);
     let high = strains.iter().copied().fold(0.0, f64::max);
+    if let Some(path) = &options.figure {
+        draw(&sim, &strains, height, path)?;
+    }
     let e = sim.energies();
     Ok(Summary {
         iterations,
@@ -140,7 +154,154 @@ fn run(options: &Options) -> Result<Summary, Failure> {
         energy_account: (e.total() - sim.initial_energy() - e.external_work + e.dissipated)
             / sim.energy_reference(),
         strain: (low, mean, high),
+        figure: options.figure.clone(),
     })
+}
+
+/// Viridis at 0, 1/8, .., 1 (matplotlib's, as R's `viridis(9)` lists it): perceptually
+/// uniform and readable in grey, without plotters' `colormaps` feature.
+const VIRIDIS: [(u8, u8, u8); 9] = [
+    (0x44, 0x01, 0x54),
+    (0x47, 0x2d, 0x7b),
+    (0x3b, 0x52, 0x8b),
+    (0x2c, 0x72, 0x8e),
+    (0x21, 0x90, 0x8c),
+    (0x27, 0xad, 0x81),
+    (0x5d, 0xc8, 0x63),
+    (0xaa, 0xdc, 0x32),
+    (0xfd, 0xe7, 0x25),
+];
+
+/// The colour of `t` in 0..1 (clamped), linear between the anchors.
+fn viridis(t: f64) -> plotters::style::RGBColor {
+    let s = t.clamp(0.0, 1.0) * (VIRIDIS.len() - 1) as f64;
+    let i = (s.floor() as usize).min(VIRIDIS.len() - 2);
+    let f = s - i as f64;
+    let (a, b) = (VIRIDIS[i], VIRIDIS[i + 1]);
+    let mix = |x: u8, y: u8| (x as f64 + f * (y as f64 - x as f64)).round() as u8;
+    plotters::style::RGBColor(mix(a.0, b.0), mix(a.1, b.1), mix(a.2, b.2))
+}
+
+/// Draws the billet's cells at their current positions, filled by `strains` (one per cell,
+/// the mesh's order), over the undeformed outline, with the die's face at `die` [m] and a
+/// colour bar.
+fn draw(sim: &Simulation2, strains: &[f64], die: f64, path: &Path) -> Result<(), Failure> {
+    use plotters::prelude::*;
+
+    let mesh = &sim.model().bodies[0].mesh;
+    let (x0, x) = (&mesh.nodes, sim.positions());
+    let finite = || strains.iter().copied().filter(|e| e.is_finite());
+    let low = finite().fold(f64::INFINITY, f64::min);
+    let low = if low.is_finite() { low } else { 0.0 };
+    // A uniform field (the first step) still needs a range to map.
+    let high = finite().fold(low, f64::max).max(low + 1e-9);
+    let colour = |e: f64| {
+        if e.is_finite() {
+            viridis((e - low) / (high - low))
+        } else {
+            RGBColor(0x99, 0x99, 0x99) // an inverted cell
+        }
+    };
+
+    let all = || x0.iter().chain(x.iter());
+    let x_hi = all().fold(0.0f64, |m, p| m.max(p.x)) * 1.04;
+    let y_hi = all().fold(die, |m, p| m.max(p.y)) * 1.04;
+    // Equal scales: the plot area's width follows the ranges at a fixed height (the margins
+    // are 15 px a side; the colour bar takes what the title's exact height leaves over).
+    let (plot_h, label_w, label_h, bar_w) = (640.0, 50.0, 45.0, 130.0);
+    let width = (plot_h * x_hi / y_hi + label_w + 30.0 + bar_w).ceil() as u32;
+    let height = (plot_h + label_h + 30.0).ceil() as u32 + 40;
+    let root = SVGBackend::new(path, (width, height)).into_drawing_area();
+    root.fill(&WHITE)?;
+    let root = root.titled(
+        &format!(
+            "Equivalent strain at t = {:.0} s ({:.0} % reduction): {low:.3} to {high:.3}",
+            sim.state().time,
+            100.0 * (1.0 - die / HEIGHT)
+        ),
+        ("sans-serif", 18),
+    )?;
+    let plot_h = root.dim_in_pixel().1 as f64 - label_h - 30.0;
+    let plot_w = plot_h * x_hi / y_hi;
+    let (left, right) = root.split_horizontally((plot_w + label_w + 30.0).round() as u32);
+
+    let mut chart = ChartBuilder::on(&left)
+        .margin(15)
+        .x_label_area_size(label_h as u32)
+        .y_label_area_size(label_w as u32)
+        .build_cartesian_2d(0.0..x_hi, 0.0..y_hi)?;
+    chart
+        .configure_mesh()
+        .disable_mesh()
+        .x_desc("x [m]")
+        .y_desc("y [m]")
+        .label_style(("sans-serif", 14))
+        .axis_desc_style(("sans-serif", 16))
+        .draw()?;
+    let point = |p: &nalgebra::Vector2<f64>| (p.x, p.y);
+    let edge = BLACK.mix(0.6).stroke_width(1);
+    let mut c = 0;
+    for block in &mesh.blocks {
+        for cell in block.cells() {
+            // Quad4 and Tri3: the corners in order.
+            let corners: Vec<(f64, f64)> = cell.iter().map(|&n| point(&x[n])).collect();
+            chart.draw_series(std::iter::once(Polygon::new(
+                corners.clone(),
+                colour(strains[c]).filled(),
+            )))?;
+            let mut closed = corners;
+            closed.push(closed[0]);
+            chart.draw_series(std::iter::once(PathElement::new(closed, edge)))?;
+            c += 1;
+        }
+    }
+    // The undeformed outline: the edges of one cell only.
+    let mut edges: std::collections::BTreeMap<(usize, usize), usize> = Default::default();
+    for cell in mesh.blocks.iter().flat_map(|b| b.cells()) {
+        for e in 0..cell.len() {
+            let (a, b) = (cell[e], cell[(e + 1) % cell.len()]);
+            *edges.entry((a.min(b), a.max(b))).or_default() += 1;
+        }
+    }
+    let grey = RGBColor(0x88, 0x88, 0x88).stroke_width(1);
+    for (&(a, b), _) in edges.iter().filter(|(_, &n)| n == 1) {
+        chart.draw_series(DashedLineSeries::new(
+            [point(&x0[a]), point(&x0[b])],
+            4,
+            3,
+            grey,
+        ))?;
+    }
+    // The die's face.
+    chart.draw_series(LineSeries::new(
+        [(0.0, die), (x_hi, die)],
+        BLACK.stroke_width(3),
+    ))?;
+
+    // The colour bar: thin bands from low to high, labelled on its right.
+    let mut bar = ChartBuilder::on(&right)
+        .margin(15)
+        .margin_left(10)
+        .x_label_area_size(label_h as u32)
+        .right_y_label_area_size(60)
+        .build_cartesian_2d(0.0..1.0, low..high)?;
+    bar.configure_mesh()
+        .disable_mesh()
+        .disable_x_axis()
+        .y_labels(8)
+        .y_label_formatter(&|e| format!("{e:.2}"))
+        .y_desc("equivalent strain")
+        .label_style(("sans-serif", 14))
+        .axis_desc_style(("sans-serif", 16))
+        .draw()?;
+    let bands = 200;
+    bar.draw_series((0..bands).map(|k| {
+        let (a, b) = (k as f64 / bands as f64, (k + 1) as f64 / bands as f64);
+        let (e0, e1) = (low + a * (high - low), low + b * (high - low));
+        Rectangle::new([(0.0, e0), (1.0, e1)], viridis((a + b) / 2.0).filled())
+    }))?;
+    root.present()?;
+    Ok(())
 }
 
 /// The physical checks; `Err` says which failed.
@@ -218,18 +379,22 @@ fn print(s: &Summary) {
         "  energy:      E - E(0) - W + D = {:+.3e} of the reference",
         s.energy_account
     );
+    if let Some(figure) = &s.figure {
+        println!("  figure:      drew {}", figure.display());
+    }
 }
 
 fn main() -> std::process::ExitCode {
     let usage = "usage: octagon_compression [--end-time SECONDS] [--set KEY=VALUE]... \
-                 [--rerun FILE.rrd]";
-    let options = Args::parse(&["--end-time", "--set"], usage).and_then(|args| {
+                 [--rerun FILE.rrd] [--figure FILE.svg]";
+    let options = Args::parse(&["--end-time", "--set", "--figure"], usage).and_then(|args| {
         Ok(Options {
             end_time: args
                 .get("--end-time")?
                 .unwrap_or(Options::default().end_time),
             overrides: args.all("--set"),
             rerun: args.rerun()?,
+            figure: args.get("--figure")?,
         })
     });
     conclude(
@@ -254,6 +419,25 @@ mod tests {
         .unwrap();
         print(&s);
         check(&s).unwrap();
+    }
+
+    /// `--figure FILE` draws the deformed mesh (two increments): one filled polygon per cell.
+    #[test]
+    fn draws_the_strain_figure() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("octagon_strain.svg");
+        let s = run(&Options {
+            end_time: 2.0,
+            figure: Some(path.clone()),
+            ..Options::default()
+        })
+        .unwrap();
+        assert_eq!(s.iterations.len(), 2);
+        let text = std::fs::read_to_string(&path).unwrap();
+        assert!(text.starts_with("<svg"), "{}", &text[..80.min(text.len())]);
+        // 8 x 8 quads; the colour bar's bands are `<rect`s, the edges `<polyline`s.
+        assert_eq!(text.matches("<polygon").count(), 64);
+        assert!(text.contains("equivalent strain"));
     }
 
     /// `--rerun FILE` records the flow (two increments).
