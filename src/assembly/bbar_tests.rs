@@ -110,14 +110,10 @@ where
         ..Default::default()
     };
     cell_kernel::<D>(cell.kind, &nodes, &cell.x, body, &fields, out);
-    let mut k = DMatrix::zeros(m, m);
-    let mut slot = 0;
-    for_lower_pairs::<D>(&nodes, |p, q| {
-        k[(p, q)] = values[slot];
-        k[(q, p)] = values[slot];
-        slot += 1;
-    });
-    (DVector::from_vec(force), k)
+    (
+        DVector::from_vec(force),
+        super::tests::symmetric_from_lower::<D>(&nodes, &values),
+    )
 }
 
 /// The tangent (weight 1 on the derivative in `field`), the central differences of the forces

@@ -42,14 +42,27 @@ where
         ..Default::default()
     };
     cell_kernel::<D>(kind, &cell, x, &body, &fields, out);
+    (
+        DVector::from_vec(force),
+        symmetric_from_lower::<D>(&cell, &values),
+    )
+}
+
+/// The cell's symmetric tangent from the kernel's packed lower triangle (shared with
+/// `bbar_tests`).
+pub(super) fn symmetric_from_lower<const D: usize>(cell: &[usize], values: &[f64]) -> DMatrix<f64>
+where
+    Dim<D>: SpatialDim<D>,
+{
+    let m = cell.len() * D;
     let mut k = DMatrix::zeros(m, m);
     let mut slot = 0;
-    for_lower_pairs::<D>(&cell, |p, q| {
+    for_lower_pairs::<D>(cell, |p, q| {
         k[(p, q)] = values[slot];
         k[(q, p)] = values[slot];
         slot += 1;
     });
-    (DVector::from_vec(force), k)
+    k
 }
 
 /// Central differences of the forces in direction `d`.
