@@ -443,18 +443,25 @@ fn folding_strip_with(overrides: &[&str]) {
     );
 }
 
-/// The tube crush under the default method, implicit projection, over the scene's 30 mm: it
-/// used to stop at step 284 with a cell turned inside out, where the end-of-step projection
-/// pushed the curl's tip out of its own end face (a false self-contact pair, found 0.118 mm
-/// deep: a node beside its own corner, which detection now rejects). Measured: 600 steps, 32
-/// cut, no penetration (3e-11 m), the account closed to 2e-12, no step with self-contact
-/// (the base fold closes at 36 mm).
+/// The tube crush under the default method, implicit projection, over its first 30 mm (the
+/// scene goes on to 45 mm): it used to stop at step 284 with a cell turned inside out, where
+/// the end-of-step projection pushed the curl's tip out of its own end face (a false
+/// self-contact pair, found 0.118 mm deep: a node beside its own corner, which detection now
+/// rejects). Measured: 600 steps, 32 cut, no penetration (3e-11 m), the account closed to
+/// 2e-12, no step with self-contact (the base fold closes at 35.9 mm). Over the whole scene
+/// it goes through the fold's closing (step 717) and stops at step 764 (38.2 mm) with no
+/// convergence, the relative residual at 1.5e-8 against 1e-8 after 50 iterations at an
+/// eighth of the step (the active-set issue's soft-body cycling; the soft way, the scene's
+/// method, runs it to the end).
 #[test]
 #[ignore = "slow (5 to 8 min on 2 cores; 19 iterations per step at the median)"]
 fn tube_crush_default_method() {
     let (mut sim, end, _) = scene::<2>(
         "tube_crush",
-        &["contact.method=\"implicit_projection\""],
+        &[
+            "contact.method=\"implicit_projection\"",
+            "simulation.end_time=6e-4",
+        ],
         [0.0, 0.0, 0.0],
     );
     let own = softway::simulation::ContactMaster::Body(sim.body_id("tube").unwrap());
@@ -499,7 +506,7 @@ fn revolved_volume(mesh: &softway::mesh::Mesh<2>, x: &[nalgebra::Vector2<f64>]) 
 }
 
 /// The paper's third example (`tube_crush.toml`: 1250 cells, Norton-Hoff with inertia, the
-/// plate at 50 m/s, the soft way), shortened to its first 100 steps (5 mm of the 30 mm crush:
+/// plate at 50 m/s, the soft way), shortened to its first 100 steps (5 mm of the 45 mm crush:
 /// the top end flares; the example `tube_crush` runs 15 mm: `cargo test --all-features
 /// --example tube_crush`). Every step
 /// converges; the axial momentum balance holds (the plate's and the base's impulses against the
@@ -526,7 +533,10 @@ fn tube_crush() {
         let r = sim
             .step()
             .unwrap_or_else(|e| panic!("t = {}: {e}", sim.state().time));
-        impulse += (r.contact_forces[0][1] + r.reactions[0][1]) * r.time_step;
+        // The plate's and the floor's forces (the floor's is zero until the base fold lands,
+        // past these steps) and the held base's reaction.
+        let obstacles: f64 = r.contact_forces.iter().map(|f| f[1]).sum();
+        impulse += (obstacles + r.reactions[0][1]) * r.time_step;
         deepest = deepest.max(r.max_penetration);
         iterations.push(r.iterations);
         // From the third step the plate is on the tube (0.1 mm of clearance at 50 m/s).
