@@ -14,9 +14,9 @@
 //! * the run ended (every step converged);
 //! * self-contact (contact points whose master is the tube's own body, with a positive normal
 //!   force) in no run that ends before the base fold closes (0.68 ms), and in some step of a
-//!   run that goes past 0.72 ms, every such point between wall that started more than 5 mm apart (a fold,
-//!   not a node beside its own corner: the curl's tip used to be paired with its own end face,
-//!   0.146 mm "inside" it, which contact detection now rejects);
+//!   run that goes past 0.72 ms, every such point between wall that started more than 5 mm
+//!   apart (a fold, not a node beside its own corner: the curl's tip used to be paired with
+//!   its own end face, 0.146 mm "inside" it, which contact detection now rejects);
 //! * penetration bounded: the deepest at the end of a step below 0.125 mm (a sixteenth of the
 //!   wall; measured 0.078 mm in the default run, 0.093 mm over the scene: the soft way's
 //!   penalty, 1e13 Pa/m, pushes back only once a node is in);
