@@ -259,9 +259,10 @@ pub enum Error {
     /// the step, at a quadrature point) in every Newton iterate tried (after halving the
     /// increment) or after the end-of-step projection, at the step's finest cut.
     #[error(
-        "a cell turned inside out at step {step} (t = {time:.6e} s): its Jacobian at t_alpha or \
-         at the step's end is not positive {}, down to the step's finest cut; use a smaller \
+        "a cell turned inside out at step {step} (t = {time:.6e} s){}: its Jacobian at t_alpha \
+         or at the step's end is not positive {}, down to the step's finest cut; use a smaller \
          time_step, a finer mesh where the body deforms most, or a softer contact penalty",
+        inversion_place(place),
         inversion_tries(*halvings)
     )]
     InvertedCell {
@@ -271,6 +272,9 @@ pub enum Error {
         time: f64,
         /// Halvings of the increment tried.
         halvings: usize,
+        /// The body and the centre of the cell (its nodes' mean at the start of the step, m),
+        /// when Newton's iterate found it (not for a fold by the end-of-step correction).
+        place: Option<(String, Vec<f64>)>,
     },
     /// The sparse factorisation failed (matrix not positive definite).
     #[error("factorisation failed at step {step}: {message}")]
@@ -307,6 +311,17 @@ pub enum Error {
 
 /// `Result` with softway's [`Error`].
 pub type Result<T, E = Error> = std::result::Result<T, E>;
+
+/// Where [`Error::InvertedCell`]'s cell is, when known: ", in body `b` near (x, y) m".
+fn inversion_place(place: &Option<(String, Vec<f64>)>) -> String {
+    match place {
+        Some((body, centre)) => {
+            let coordinates: Vec<String> = centre.iter().map(|c| format!("{c:.4e}")).collect();
+            format!(", in body `{body}` near ({}) m", coordinates.join(", "))
+        }
+        None => String::new(),
+    }
+}
 
 /// What was tried before [`Error::InvertedCell`]: Newton's increment halved, or (none) the
 /// first iterate or the end-of-step correction folded the cell.

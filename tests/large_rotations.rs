@@ -15,7 +15,8 @@ both_dims!(
     stiffness_damping_leaves_a_rigid_spin_alone,
     a_released_bar_swings_like_a_pendulum,
     a_compressed_bar_whose_matrix_turns_indefinite_is_cut,
-    a_pre_stressed_spinning_ring_keeps_its_stress_invariants
+    a_pre_stressed_spinning_ring_keeps_its_stress_invariants,
+    a_cell_turned_inside_out_is_named
 );
 
 /// What a full turn of a free spinning square (cube) left.
@@ -377,6 +378,73 @@ where
         (measured[0] - measured[1]).abs() < 0.01 * measured[0],
         "{measured:?}"
     );
+}
+
+/// A soft hypoelastic ring (radii 0.8 and 1 m, 64 x 4 Quad4; 3D 32 x 2 extruded 0.2 m into
+/// Hex8; E = 1e5 Pa, wave speed 10 m/s) dropped at 200 m/s, 0.2 m above a rigid floor: the
+/// impact turns the cells that land inside out, down to the finest cut (measured: step 2 in
+/// 2D). The error names the body and where the cell was at the start of the step: on the
+/// ring's bottom, at the floor.
+fn a_cell_turned_inside_out_is_named<const D: usize>()
+where
+    Dim<D>: SpatialDim<D>,
+{
+    use nalgebra::Vector2;
+    let cells = if D == 2 { [64, 4] } else { [32, 2] };
+    let ring = annulus(Vector2::new(0.0, 1.2), 0.8, 1.0, cells, ElementKind::Quad4).unwrap();
+    let mesh: Mesh<D> = if D == 2 {
+        common::retype(ring)
+    } else {
+        common::retype(extrude(&ring, 0.0, 0.2, 1, ElementKind::Hex8).unwrap())
+    };
+    let mut velocity = [0.0; D];
+    velocity[1] = -200.0;
+    let mut normal = [0.0; D];
+    normal[1] = 1.0;
+    let mut sim = Simulation::<D>::builder()
+        .time_step(1e-3)
+        .body(Body {
+            initial_velocity: velocity.into(),
+            ..Body::new(
+                "ring",
+                mesh,
+                Material::Hypoelastic(
+                    Hypoelastic::new(1e5, 0.3, 1000.0, RotationUpdate::HughesWinget).unwrap(),
+                ),
+            )
+        })
+        .obstacle(Obstacle::new(
+            "floor",
+            ObstacleShape::Halfspace {
+                point: [0.0; D].into(),
+                normal: normal.into(),
+            },
+        ))
+        .contact(ContactSettings {
+            method: ContactMethod::SoftWay,
+            penalty: 1e10,
+            ..ContactSettings::default()
+        })
+        .build()
+        .unwrap();
+    let error = (0..5)
+        .find_map(|_| sim.step().err())
+        .expect("a 200 m/s impact on a 10 m/s material ran five steps");
+    let message = error.to_string();
+    eprintln!("{D}D: {message}");
+    match error {
+        Error::InvertedCell {
+            place: Some((body, centre)),
+            ..
+        } => {
+            assert_eq!(body, "ring");
+            // On the ring's bottom (0.2 m above the floor at the start, 0.2 m a step).
+            assert!(centre[1] < 0.3, "{centre:?}");
+            assert!(centre[0].abs() < 1.0, "{centre:?}");
+            assert!(message.contains("in body `ring` near ("), "{message}");
+        }
+        other => panic!("{other}"),
+    }
 }
 
 /// An angular velocity `omega` (rad/s) about z: the scalar in 2D, the vector in 3D.

@@ -475,6 +475,9 @@ pub struct Integrated {
     /// The part of `forces` that dissipates (N): the stiffness-proportional damping of
     /// updated-Lagrangian bodies and the whole stress of flow laws (empty without either).
     pub damping_forces: Vec<f64>,
+    /// The first inverted cell (the one `energy` is NaN for), in the table's order: its body
+    /// and its nodes, for the error that names where it is.
+    pub inverted: Option<(usize, Vec<usize>)>,
 }
 
 /// Internal forces `f_int = int B^T sigma` integrated cell by cell from the law's stresses at
@@ -499,6 +502,7 @@ where
     let mut energy = 0.0;
     let mut new_history = vec![0.0; history_len(table, bodies)];
     let mut damping_forces = Vec::new();
+    let mut inverted = None;
     let mut offset = 0;
     for seg in &table.segments {
         let per = values_per_cell(seg.kind, D);
@@ -577,6 +581,12 @@ where
             }
         }
         energy += energies.iter().sum::<f64>();
+        if inverted.is_none() {
+            inverted = energies.iter().position(|e| e.is_nan()).map(|c| {
+                let nodes = table.cell(seg.cells.start + c, seg.kind);
+                (seg.body, nodes.to_vec())
+            });
+        }
         if hp > 0 {
             new_history[offset..offset + count * hp].copy_from_slice(&histories);
         }
@@ -588,6 +598,7 @@ where
         energy,
         history: new_history,
         damping_forces,
+        inverted,
     }
 }
 

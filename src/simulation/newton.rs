@@ -475,10 +475,25 @@ where
                             continue;
                         }
                     }
+                    let place = integrated.inverted.map(|(body, nodes)| {
+                        // Where the cell is at the start of the step: reference plus u0.
+                        let centre: SVector<f64, D> = nodes
+                            .iter()
+                            .map(|&n| {
+                                self.reference[n] + SVector::<f64, D>::from_fn(|k, _| u0[n * D + k])
+                            })
+                            .sum::<SVector<f64, D>>()
+                            / nodes.len() as f64;
+                        (
+                            self.model.bodies[body].name.clone(),
+                            centre.as_slice().to_vec(),
+                        )
+                    });
                     return Err(Error::InvertedCell {
                         step,
                         time: t0 + h,
                         halvings: backtracks,
+                        place,
                     });
                 }
                 tangent_values = integrated.tangent.unwrap_or_default();

@@ -609,6 +609,7 @@ where
                 step,
                 time: t0 + h,
                 halvings: 0,
+                place: None,
             });
         }
         if !finite || !energies.total().is_finite() || energies.total() > limit {
