@@ -580,8 +580,10 @@ where
                 }
             }
         }
-        energy += energies.iter().sum::<f64>();
-        if inverted.is_none() {
+        let segment_energy = energies.iter().sum::<f64>();
+        energy += segment_energy;
+        // Searched only when this segment holds an inverted cell (its energy sum is NaN).
+        if inverted.is_none() && segment_energy.is_nan() {
             inverted = energies.iter().position(|e| e.is_nan()).map(|c| {
                 let nodes = table.cell(seg.cells.start + c, seg.kind);
                 (seg.body, nodes.to_vec())
