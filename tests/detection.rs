@@ -315,6 +315,7 @@ where
             deformable_pairs: true,
             hysteresis: 0.0,
             facing: false,
+            lock_flipping_facets: false,
         };
         let surface = ContactSurface::from_bodies(&[&a, &b, &c], &offsets);
         let facets = surface.facets().to_vec();
@@ -920,15 +921,65 @@ fn hysteresis_keeps_the_master_near_a_corner() {
     // Far across: the top facet wins.
     x[4] = Vector2::new(0.9, 0.97);
     assert_eq!(probe(det.pairs(&x, &[])), Master::Facet(2));
-    // Without hysteresis the switch is immediate.
+    // Without hysteresis the switch is immediate (a new step: the count of changes that
+    // locks a facet starts again).
     det.set_options(DetectionOptions {
         hysteresis: 0.0,
         ..options
     });
+    det.set_memory(&det.memory());
     x[4] = Vector2::new(0.95, 0.9);
     det.pairs(&x, &[]);
     x[4] = Vector2::new(0.915, 0.925);
     assert_eq!(probe(det.pairs(&x, &[])), Master::Facet(2));
+}
+
+/// A node that swings across the bisector at every call changes its master twice, then keeps
+/// the facet it has until the locks are released (the end of Newton's iterations) or the
+/// memory is set (a step's start).
+#[test]
+fn a_facet_that_changes_twice_is_kept() {
+    let square = vec![[0, 1], [1, 2], [2, 3], [3, 0]];
+    let probe = vec![[0, 1]];
+    let right = Vector2::new(0.95, 0.9);
+    let top = Vector2::new(0.9, 0.95);
+    let mut x = vec![
+        Vector2::new(0.0, 0.0),
+        Vector2::new(1.0, 0.0),
+        Vector2::new(1.0, 1.0),
+        Vector2::new(0.0, 1.0),
+        right,
+        Vector2::new(5.0, 5.0),
+    ];
+    let surface = ContactSurface::from_facets(&[square, probe], &[0, 4]);
+    let mut det = Detector::new(
+        surface,
+        DetectionOptions {
+            margin: 0.1,
+            lock_flipping_facets: true,
+            ..Default::default()
+        },
+    );
+    det.update_candidates(&x, &x, &[], &[]);
+    let mut master = |det: &mut Detector<2>, at: Vector2<f64>| {
+        x[4] = at;
+        let pairs = det.pairs(&x, &[]);
+        pairs.into_iter().find(|p| p.slave == 4).unwrap().master
+    };
+    assert_eq!(softway::contact::detection::FLIPS_BEFORE_LOCK, 2);
+    assert_eq!(master(&mut det, right), Master::Facet(1));
+    assert_eq!(master(&mut det, top), Master::Facet(2));
+    assert_eq!(master(&mut det, right), Master::Facet(1));
+    // Locked: the top facet is nearer, the right one is kept.
+    assert_eq!(master(&mut det, top), Master::Facet(1));
+    assert_eq!(master(&mut det, top), Master::Facet(1));
+    det.release_facet_locks();
+    assert_eq!(master(&mut det, top), Master::Facet(2));
+    // Two more changes lock it again; a new step's memory unlocks it.
+    assert_eq!(master(&mut det, right), Master::Facet(1));
+    assert_eq!(master(&mut det, top), Master::Facet(1));
+    det.set_memory(&det.memory());
+    assert_eq!(master(&mut det, top), Master::Facet(2));
 }
 
 #[test]

@@ -229,9 +229,24 @@ fn a_soft_ring_dropped_on_a_soft_pad_soft_way() {
     r.rebounds_as_both_methods_do();
 }
 
-/// Implicit projection (the default method) at half the default step: it lands and bounces
-/// as the soft way does, with no penetration. Measured: penetration 6e-6 m, largest energy
-/// error 4.8e-3. (At the default step: `open`.)
+/// Implicit projection, the default method, at the default step: it lands and bounces as the
+/// soft way does, and the account closes. Measured (2026-11-27): no step cut, penetration
+/// 1.04e-5 m, largest energy error 9.6e-3, in 9 s. Before, the ring's bottom node crossed the
+/// pad's vertex under it at every Newton iteration (the dent its push makes is a concave V,
+/// its facets 2.4 degrees apart), no full step converged from the first contact on, 82 of 200
+/// steps were cut, and the account drifted 7.4 % (112 % when cut steps did not keep the
+/// shadow displacement): a facet that changes twice in a step is now kept until the step ends
+/// (`FLIPS_BEFORE_LOCK`).
+#[test]
+fn a_soft_ring_dropped_on_a_soft_pad_implicit_projection() {
+    let r = ring_on_pad(ContactSettings::default(), 1e-3);
+    assert!(r.error < 1e-2, "energy error {}", r.error);
+    assert!(r.penetration < 2e-5, "penetration {}", r.penetration);
+    r.rebounds_as_both_methods_do();
+}
+
+/// Implicit projection at half the default step: it lands and bounces as the soft way does,
+/// with no penetration. Measured: penetration 4.4e-6 m, largest energy error 5.3e-3.
 #[test]
 fn a_soft_ring_dropped_on_a_soft_pad_implicit_projection_half_step() {
     let r = ring_on_pad(ContactSettings::default(), 5e-4);
@@ -286,18 +301,7 @@ mod d3 {
 }
 
 mod open {
-    use softway::contact::{ContactMethod, ContactSettings, GapDisplacement};
-
-    /// The issue's target: the default method at the default step keeps the account.
-    #[test]
-    #[ignore = "known defect (issue 10, energy pumped by cut steps): implicit projection at \
-                the default step cuts 50 of the first 591 steps and the energy grows until \
-                the run stops, 1778 % above the input (softway run exits 3); at half the step \
-                (4 cuts) the account holds to 3.5e-3"]
-    fn a_soft_ring_dropped_on_a_soft_pad_implicit_projection() {
-        let r = super::ring_on_pad(ContactSettings::default(), 1e-3);
-        assert!(r.error < 1e-2, "energy error {}", r.error);
-    }
+    use softway::contact::{ContactMethod, GapDisplacement};
 
     #[test]
     #[ignore = "runs to the end and its account closes to 1.08e-2, but the upper block's \

@@ -9,6 +9,7 @@ pub(crate) mod inside;
 pub(crate) mod methods;
 pub mod obstacle;
 pub mod resolution;
+mod surface;
 
 use serde::{Deserialize, Serialize};
 

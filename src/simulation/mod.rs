@@ -47,7 +47,9 @@ pub use state::{ContactMemory, FactorRecord, MasterId, State};
 pub use symmetric_matrix::SymmetricMatrix;
 
 use crate::assembly::{self, BodyIntegration, CellTable, LinearMatrices, Pattern};
-use crate::contact::{ContactSettings, ContactSurface, DetectionOptions, Detector, Obstacle};
+use crate::contact::{
+    ContactMethod, ContactSettings, ContactSurface, DetectionOptions, Detector, Obstacle,
+};
 use crate::dim::{Dim, Kinematics, SpatialDim};
 use crate::error::{Error, Result};
 use crate::mesh::Mesh;
@@ -548,6 +550,7 @@ where
                     deformable_pairs: true,
                     hysteresis: 1e-3 * mean_size,
                     facing: true,
+                    lock_flipping_facets: contact.method == ContactMethod::ImplicitProjection,
                 },
             ));
         }
