@@ -231,10 +231,10 @@ fn a_soft_ring_dropped_on_a_soft_pad_soft_way() {
 
 /// Implicit projection, the default method, at the default step: it lands and bounces as the
 /// soft way does, and the account closes. Measured (2026-11-27): no step cut, penetration
-/// 1.04e-5 m, largest energy error 9.6e-3, in 9 s. Before, the ring's bottom node crossed the
+/// 9.8e-6 m, largest energy error 8.7e-3, in 9 s. Before, the ring's bottom node crossed the
 /// pad's vertex under it at every Newton iteration (the dent its push makes is a concave V,
 /// its facets 2.4 degrees apart), no full step converged from the first contact on, 82 of 200
-/// steps were cut, and the account drifted 7.4 % (112 % when cut steps did not keep the
+/// steps were cut, and the account drifted 7.4 % with cut steps that shifted every node (112 % when cut steps did not keep the
 /// shadow displacement): a facet that changes twice in a step is now kept until the step ends
 /// (`FLIPS_BEFORE_LOCK`).
 #[test]

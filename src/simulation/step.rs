@@ -219,6 +219,11 @@ where
     /// travel (an eighth at the default scheme), undone when the cut step ends; with a non-linear
     /// law the material's history does not see it (a strain of the order of the scheme's own
     /// truncation). It is zero where `alpha = beta`.
+    ///
+    /// Nodes within the detection's reach of a master (the slaves of the narrow phase's memory,
+    /// kept in the state) are left where they are: a master does not shift with them (an
+    /// obstacle's pose follows the clock), and a node that implicit projection had put on a
+    /// plate moving at 50 m/s was moved 6.25e-6 m into it (the tube crush, `h = 1e-6` s).
     fn shift_to_step(&mut self, from: f64, to: f64) {
         let SpaceTimeScheme { alpha, beta } = self.model.settings.scheme;
         let by = 0.5 * (alpha - beta) * (from - to);
@@ -226,8 +231,21 @@ where
             return;
         }
         let state = &mut self.state;
-        for (u, v) in state.displacement.iter_mut().zip(&state.velocity) {
-            *u += by * v;
+        let mut near_contact = vec![false; state.velocity.len() / D];
+        for ((slave, _), _) in &state.contact_memory.detection {
+            if let Some(near) = near_contact.get_mut(*slave) {
+                *near = true;
+            }
+        }
+        for (i, (u, v)) in state
+            .displacement
+            .iter_mut()
+            .zip(&state.velocity)
+            .enumerate()
+        {
+            if !near_contact[i / D] {
+                *u += by * v;
+            }
         }
     }
 
