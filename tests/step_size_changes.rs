@@ -1,9 +1,8 @@
 //! What a change of step size does to the scheme's conserved energy Q (the quantity the
-//! space-time scheme keeps at a fixed step): a step taken as two plain halves moves it a
-//! little; steps halved again and again pump energy into the modes the step does not resolve,
-//! unless the displacement is shifted to keep the shadow displacement `u + a h v`, as a cut
-//! step (`Simulation::step`, when Newton fails) does (the contact chapter, "A cut step is not
-//! free").
+//! space-time scheme keeps at a fixed step): a step cut in two halves (what `Simulation::step`
+//! does when Newton fails) moves it a little; steps cut again and again pump energy into the
+//! modes the step does not resolve (a known defect: the contact chapter, "A stalled Newton is
+//! retried").
 
 use crate::common;
 
@@ -77,22 +76,21 @@ fn one_cut_step_moves_the_conserved_energy_little() {
     }
 }
 
-/// Every seventh step taken as two plain halves (what a cut step did before it shifted the
-/// displacement): Q grows 59-fold at twice the explicit step in four transit times (3.3e5-fold
-/// at 5 times; every third step halved, the run stops as unstable). The scheme at a fixed step
-/// conserves a modified energy that depends on the step; changing the step back and forth
-/// excites the unresolved modes parametrically. This is what made the bar impact's paper
-/// pressure look 444-fold unstable while Newton stalled at its round-off floor and its steps
-/// were cut (`tests/secant_penalty.rs`). A cut step no longer does this: it keeps the shadow
-/// displacement (below, and `Simulation::advance_in_halves`'s unit test).
+/// Every seventh step halved: Q grows 59-fold at twice the explicit step in four transit times
+/// (3.3e5-fold at 5 times; every third step halved, the run stops as unstable). The scheme at a
+/// fixed step conserves a modified energy that depends on the step; changing the step back and
+/// forth excites the unresolved modes parametrically. This is what made the bar impact's paper
+/// pressure look 444-fold unstable while Newton stalled at its round-off floor and its steps were
+/// cut (`tests/secant_penalty.rs`).
 #[test]
-fn plain_halved_steps_pump_the_conserved_energy() {
+#[ignore = "known defect: Q grows 59-fold when every seventh step is halved (k = 2)"]
+fn repeated_cut_steps_keep_the_conserved_energy() {
     let periodic = free_flight_after_impact(2.0, |n| n % 7 == 0);
-    assert!(periodic > 10.0, "{periodic}");
+    assert!((periodic - 1.0).abs() < 0.025, "{periodic}");
 }
 
-/// Why plain halves pump, and the change of step that keeps Q (what a cut step does, in
-/// `Simulation::advance_in_halves`). With a = (alpha - beta) / 2 and the shadow displacement
+/// Why cuts pump, and a change of step that keeps Q (an experiment for issue 10, not yet what
+/// `Simulation::step` does). With a = (alpha - beta) / 2 and the shadow displacement
 /// u~ = u + a h v, the conserved energy is `Q_h = 1/2 v^T M v + 1/2 u~^T K u~ + g h^2 v^T K v`,
 /// g = (alpha^2 - 2 alpha beta) / 4 - a^2 / 2 (1/64 at the default 0.75 and 0.25; 0 at
 /// alpha = sqrt(2)/2, beta = 1 - alpha). A change of step from h to h' at a fixed u moves u~ by

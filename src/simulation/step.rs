@@ -170,7 +170,7 @@ where
 
     /// A step of size `h` taken as two halves, each cut again if it fails (`depth` cuts
     /// so far), reported as one step: iterations and cuts summed, forces and reactions
-    /// averaged. The halves keep the shadow displacement ([`Self::shift_to_step`]).
+    /// averaged.
     fn advance_in_halves(
         &mut self,
         h: f64,
@@ -178,12 +178,8 @@ where
         depth: usize,
         last_piece: bool,
     ) -> Result<StepReport> {
-        // The halves keep the scheme's shadow displacement `u + a h v` (below), and
-        // the whole step hands on the state the full step's convention expects.
-        self.shift_to_step(h, 0.5 * h);
         let first = self.advance_cut(0.5 * h, recorder, depth + 1, false)?;
         let mut second = self.advance_cut(0.5 * h, recorder, depth + 1, last_piece)?;
-        self.shift_to_step(0.5 * h, h);
         second.iterations += first.iterations;
         second.cuts += first.cuts + 1;
         second.held_contacts = second.held_contacts.max(first.held_contacts);
@@ -205,48 +201,6 @@ where
             }
         }
         Ok(second)
-    }
-
-    /// Hands the state from steps of size `from` to steps of size `to` (s): the displacement
-    /// moves by `a (from - to) v`, `a = (alpha - beta) / 2`, so that the shadow displacement
-    /// `u + a h v` the scheme's conserved energy is written in stays where it was. At a fixed
-    /// step the scheme keeps `Q_h = 1/2 v^T M v + 1/2 u~^T K u~ + g h^2 v^T K v` for linear laws
-    /// (`g = (alpha^2 - 2 alpha beta)/4 - a^2/2`, 1/64 at the default scheme); a change of step
-    /// at a fixed u moves u~ by `a (to - from) v`, and steps cut again and again pumped energy
-    /// into the modes the step does not resolve (59-fold on a free-flying bar at twice the
-    /// explicit step, every seventh step halved; 1.0003 with the shift:
-    /// `tests/step_size_changes.rs`). Halving a step shifts by `(alpha - beta) / 4` of its
-    /// travel (an eighth at the default scheme), undone when the cut step ends; with a non-linear
-    /// law the material's history does not see it (a strain of the order of the scheme's own
-    /// truncation). It is zero where `alpha = beta`.
-    ///
-    /// Nodes within the detection's reach of a master (the slaves of the narrow phase's memory,
-    /// kept in the state) are left where they are: a master does not shift with them (an
-    /// obstacle's pose follows the clock), and a node that implicit projection had put on a
-    /// plate moving at 50 m/s was moved 6.25e-6 m into it (the tube crush, `h = 1e-6` s).
-    fn shift_to_step(&mut self, from: f64, to: f64) {
-        let SpaceTimeScheme { alpha, beta } = self.model.settings.scheme;
-        let by = 0.5 * (alpha - beta) * (from - to);
-        if by == 0.0 {
-            return;
-        }
-        let state = &mut self.state;
-        let mut near_contact = vec![false; state.velocity.len() / D];
-        for ((slave, _), _) in &state.contact_memory.detection {
-            if let Some(near) = near_contact.get_mut(*slave) {
-                *near = true;
-            }
-        }
-        for (i, (u, v)) in state
-            .displacement
-            .iter_mut()
-            .zip(&state.velocity)
-            .enumerate()
-        {
-            if !near_contact[i / D] {
-                *u += by * v;
-            }
-        }
     }
 
     /// Whether gaps are measured on the running eq 22 displacement: chosen, and a penalty
