@@ -651,13 +651,15 @@ where
                                     !beside_own_corner
                                 },
                                 prev,
-                                match prev {
-                                    Some(f)
+                                // A memory carried over an edit of the bodies may name a
+                                // facet that is gone: no lock then.
+                                match prev.and_then(|f| surface.facets.get(f)) {
+                                    Some(facet)
                                         if flips.get(&(node, key)).copied().unwrap_or(0)
                                             >= FLIPS_BEFORE_LOCK
                                             && options.lock_flipping_facets =>
                                     {
-                                        LOCKED_REACH * facet_size(&surface.facets[f].map(|v| x[v]))
+                                        LOCKED_REACH * facet_size(&facet.map(|v| x[v]))
                                     }
                                     _ => options.hysteresis,
                                 },
@@ -687,12 +689,15 @@ where
                 continue;
             };
             // A change between facets that turn the normal (not two halves of a flat quad).
-            if matches!(p.master, Master::Facet(_)) && prev != *choice {
-                let (_, n) =
-                    <Dim<D>>::facet_measure_normal(&self.surface.facets[prev].map(|v| x[v]));
-                if n.dot(&p.normal) < (1.0 - 0.5 * FLIP_ANGLE * FLIP_ANGLE) {
-                    *self.flips.entry(key).or_insert(0) += 1;
-                }
+            if !matches!(p.master, Master::Facet(_)) || prev == *choice {
+                continue;
+            }
+            let Some(facet) = self.surface.facets.get(prev) else {
+                continue;
+            };
+            let (_, n) = <Dim<D>>::facet_measure_normal(&facet.map(|v| x[v]));
+            if n.dot(&p.normal) < (1.0 - 0.5 * FLIP_ANGLE * FLIP_ANGLE) {
+                *self.flips.entry(key).or_insert(0) += 1;
             }
         }
         self.previous = results
