@@ -683,7 +683,13 @@ where
             }
             out
         });
-        for (p, key, choice, _) in &results {
+        // Flips are counted only where they can lock: the other methods keep the closest facet.
+        let counted = if self.options.lock_flipping_facets {
+            &results[..]
+        } else {
+            &[]
+        };
+        for (p, key, choice, _) in counted {
             let key = (p.slave, *key);
             let Some(&prev) = self.previous.get(&key) else {
                 continue;

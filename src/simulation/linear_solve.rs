@@ -387,6 +387,43 @@ where
         Ok(cholesky)
     }
 
+    /// The floating-point noise of the residual's internal and inertial forces (N): the end
+    /// velocity is only known to a unit in its last place, so its forces are not known
+    /// better than `eps |M/h + K_t| |v1|` (2-norm over free unknowns). Newton cannot go below
+    /// it. It matters for a stiff tangent on a fast body: Norton-Hoff at small m is very
+    /// viscous where the strain rate nears its regularisation, in a part that moves rigidly.
+    pub(super) fn tangent_round_off(&self, tangent_values: &[f64], v1: &[f64], h: f64) -> f64 {
+        if tangent_values.len() != self.pattern.triplets {
+            return 0.0;
+        }
+        let matrix = self.pattern.matrix(tangent_values);
+        let (col_ptr, row_idx, vals) = (
+            matrix.symbolic().col_ptr(),
+            matrix.symbolic().row_idx(),
+            matrix.val(),
+        );
+        let mass = self.matrices.mass.val();
+        let mut noise = vec![0.0; v1.len()];
+        for j in 0..col_ptr.len() - 1 {
+            for k in col_ptr[j]..col_ptr[j + 1] {
+                // The lower triangle: each off-diagonal entry stands for two.
+                let i = row_idx[k];
+                let a = (vals[k] + mass[k] / h).abs();
+                noise[i] += a * v1[j].abs();
+                if i != j {
+                    noise[j] += a * v1[i].abs();
+                }
+            }
+        }
+        let free2: f64 = noise
+            .iter()
+            .zip(&self.prescribed)
+            .filter(|(_, p)| p.is_none())
+            .map(|(n, _)| n * n)
+            .sum();
+        f64::EPSILON * free2.sqrt()
+    }
+
     /// A symbolic analysis to factor `matrix` with: shared with the newest contact
     /// factorisation (or the contact-free one) when the pattern is the same.
     fn analysis_for(&self, matrix: &SparseColMat<usize, f64>) -> Result<SparseCholesky> {
