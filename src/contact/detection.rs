@@ -684,26 +684,23 @@ where
             out
         });
         // Flips are counted only where they can lock: the other methods keep the closest facet.
-        let counted = if self.options.lock_flipping_facets {
-            &results[..]
-        } else {
-            &[]
-        };
-        for (p, key, choice, _) in counted {
-            let key = (p.slave, *key);
-            let Some(&prev) = self.previous.get(&key) else {
-                continue;
-            };
-            // A change between facets that turn the normal (not two halves of a flat quad).
-            if !matches!(p.master, Master::Facet(_)) || prev == *choice {
-                continue;
-            }
-            let Some(facet) = self.surface.facets.get(prev) else {
-                continue;
-            };
-            let (_, n) = <Dim<D>>::facet_measure_normal(&facet.map(|v| x[v]));
-            if n.dot(&p.normal) < (1.0 - 0.5 * FLIP_ANGLE * FLIP_ANGLE) {
-                *self.flips.entry(key).or_insert(0) += 1;
+        if self.options.lock_flipping_facets {
+            for (p, key, choice, _) in &results {
+                let key = (p.slave, *key);
+                let Some(&prev) = self.previous.get(&key) else {
+                    continue;
+                };
+                // A change between facets that turn the normal (not two halves of a flat quad).
+                if !matches!(p.master, Master::Facet(_)) || prev == *choice {
+                    continue;
+                }
+                let Some(facet) = self.surface.facets.get(prev) else {
+                    continue;
+                };
+                let (_, n) = <Dim<D>>::facet_measure_normal(&facet.map(|v| x[v]));
+                if n.dot(&p.normal) < (1.0 - 0.5 * FLIP_ANGLE * FLIP_ANGLE) {
+                    *self.flips.entry(key).or_insert(0) += 1;
+                }
             }
         }
         self.previous = results
