@@ -1,8 +1,10 @@
 //! What a change of step size does to the scheme's conserved energy Q (the quantity the
-//! space-time scheme keeps at a fixed step): a step cut in two halves (what `Simulation::step`
-//! does when Newton fails) moves it a little; steps cut again and again pump energy into the
-//! modes the step does not resolve (a known defect: the contact chapter, "A stalled Newton is
-//! retried").
+//! space-time scheme keeps at a fixed step). A step cut in two halves (what `Simulation::step`
+//! does when Newton fails) changes the step twice; taken as they are, (u, v) pumped the modes
+//! the step does not resolve (every seventh step halved: Q 59-fold at twice the explicit step,
+//! 3.3e5-fold at five times). The state is now re-expressed for the new step at each change
+//! (`src/simulation/step_change.rs`): Q never grows, and loses a little in the unresolved
+//! modes, booked as dissipation.
 
 use crate::common;
 
@@ -15,103 +17,216 @@ use softway::prelude::*;
 /// `cut(n)` says (n counted from the separation) are taken as two halves. Returns Q at the end
 /// over Q at the separation.
 fn free_flight_after_impact(k: f64, cut: impl Fn(usize) -> bool) -> f64 {
-    free_flight_with_cuts(k, cut, false)
+    free_flight_with_cuts(k, cut).0
 }
 
-/// [`free_flight_after_impact`], with the displacement shifted by `a (h - h') v` at each change
-/// of step from h to h' when `shifted` (a = (alpha - beta) / 2).
-fn free_flight_with_cuts(k: f64, cut: impl Fn(usize) -> bool, shifted: bool) -> f64 {
+/// [`free_flight_after_impact`], with the account of Q over the flight:
+/// `|Q(end) - Q(separation) + D|` over Q(separation), D the energy booked as dissipated in the
+/// flight (no force works on the flying bar).
+fn free_flight_with_cuts(k: f64, cut: impl Fn(usize) -> bool) -> (f64, f64) {
     let (mut sim, transit) =
         common::steel_bar_at_a_wall(k, GapDisplacement::Trapezoid, PenaltyForce::Secant);
     let h = sim.model().settings.time_step;
-    let SpaceTimeScheme { alpha, beta } = sim.model().settings.scheme;
-    let shift = if shifted {
-        0.5 * (alpha - beta) * 0.5 * h
-    } else {
-        0.0
-    };
     let separated = 3.0 * transit;
     while sim.state().time < separated {
         sim.step().unwrap();
     }
     let q = sim.scheme_energy();
+    let dissipated = sim.energies().dissipated;
     let mut n = 0;
     while sim.state().time < separated + 4.0 * transit {
         n += 1;
         if cut(n) {
-            shift_displacement(&mut sim, shift);
             sim.advance(0.5 * h, &mut NullRecorder).unwrap();
             sim.advance(0.5 * h, &mut NullRecorder).unwrap();
-            shift_displacement(&mut sim, -shift);
         } else {
             sim.step().unwrap();
         }
     }
-    sim.scheme_energy() / q
+    let booked = sim.energies().dissipated - dissipated;
+    let q_end = sim.scheme_energy();
+    (q_end / q, (q_end - q + booked).abs() / q)
 }
 
-/// u += `by` v (s), through the public state.
-fn shift_displacement(sim: &mut Simulation<2>, by: f64) {
-    if by == 0.0 {
-        return;
-    }
-    let mut state = sim.state().clone();
-    for (u, v) in state.displacement.iter_mut().zip(&sim.state().velocity) {
-        *u += by * v;
-    }
-    sim.set_state(state).unwrap();
-}
-
-/// Without cuts Q stays to 3e-11; one step halved moves it by 1.8e-3, 1.3e-2 and 1.6e-2 at 2, 5
-/// and 10 times the explicit step (measured 2026-11-26).
+/// Without cuts Q stays to 3e-11; one step halved now takes 5.1e-4, 1.5e-3 and 2.8e-3 of it at
+/// 2, 5 and 10 times the explicit step (the unresolved modes' share; it moved by 1.8e-3, 1.3e-2
+/// and 1.6e-2 either way before the state was re-expressed).
 #[test]
-fn one_cut_step_moves_the_conserved_energy_little() {
+fn one_cut_step_keeps_the_conserved_energy() {
     for k in [2.0, 5.0, 10.0] {
         let steady = free_flight_after_impact(k, |_| false);
         assert!((steady - 1.0).abs() < 1e-9, "k = {k}: {steady}");
         let once = free_flight_after_impact(k, |n| n == 5);
         eprintln!("k = {k}: Q(end)/Q(separation) {once} after one cut step");
         common::verify::record("step-cut", "Q change", once - 1.0);
-        assert!((once - 1.0).abs() < 0.025, "k = {k}: {once}");
+        assert!(once <= 1.0 + 1e-9, "k = {k}: Q grew to {once}");
+        assert!(once > 0.995, "k = {k}: Q fell to {once}");
     }
 }
 
-/// Every seventh step halved: Q grows 59-fold at twice the explicit step in four transit times
-/// (3.3e5-fold at 5 times; every third step halved, the run stops as unstable). The scheme at a
-/// fixed step conserves a modified energy that depends on the step; changing the step back and
-/// forth excites the unresolved modes parametrically. This is what made the bar impact's paper
-/// pressure look 444-fold unstable while Newton stalled at its round-off floor and its steps were
-/// cut (`tests/secant_penalty.rs`).
+/// Steps cut again and again (every seventh, every third) at 2, 5 and 10 times the explicit
+/// step: Q never grows (it grew 59-fold, 3.3e5-fold and unboundedly before), it loses what the
+/// unresolved modes held, booked as dissipation: the account of Q closes to round-off.
 #[test]
-#[ignore = "known defect: Q grows 59-fold when every seventh step is halved (k = 2)"]
 fn repeated_cut_steps_keep_the_conserved_energy() {
-    let periodic = free_flight_after_impact(2.0, |n| n % 7 == 0);
-    assert!((periodic - 1.0).abs() < 0.025, "{periodic}");
+    for k in [2.0, 5.0, 10.0] {
+        for every in [7, 3] {
+            let (q, account) = free_flight_with_cuts(k, |n| n % every == 0);
+            eprintln!(
+                "k = {k}, one step in {every} halved: Q(end)/Q(separation) {q}, account \
+                 of Q {account:.2e}"
+            );
+            common::verify::record("step-cut", "repeated Q change", q - 1.0);
+            assert!(q <= 1.0 + 1e-9, "k = {k}, every {every}: Q grew to {q}");
+            assert!(q > 0.9, "k = {k}, every {every}: Q fell to {q}");
+            assert!(
+                account < 1e-9,
+                "k = {k}, every {every}: account {account:e}"
+            );
+        }
+    }
 }
 
-/// Why cuts pump, and a change of step that keeps Q (an experiment for issue 10, not yet what
-/// `Simulation::step` does). With a = (alpha - beta) / 2 and the shadow displacement
-/// u~ = u + a h v, the conserved energy is `Q_h = 1/2 v^T M v + 1/2 u~^T K u~ + g h^2 v^T K v`,
-/// g = (alpha^2 - 2 alpha beta) / 4 - a^2 / 2 (1/64 at the default 0.75 and 0.25; 0 at
-/// alpha = sqrt(2)/2, beta = 1 - alpha). A change of step from h to h' at a fixed u moves u~ by
-/// a (h' - h) v; shifting u by a (h - h') v keeps it, and Q then moves only by g's term.
-/// Measured (k = 2, twice the explicit step): every seventh step halved, Q ends at 1.0003 of
-/// its value (59-fold without the shift), every third at 1.04 (unstable without), one halved
-/// step 9.5e-5 (1.8e-3). At k = 5 g's term is no longer small: every seventh step halved, Q
-/// grows 43-fold (3.3e5-fold without).
-#[test]
-fn cut_steps_that_keep_the_shadow_displacement_keep_q() {
-    let once = free_flight_with_cuts(2.0, |n| n == 5, true);
-    assert!((once - 1.0).abs() < 2e-4, "once: {once}");
-    let periodic = free_flight_with_cuts(2.0, |n| n % 7 == 0, true);
-    assert!((periodic - 1.0).abs() < 1e-3, "every seventh: {periodic}");
-    let often = free_flight_with_cuts(2.0, |n| n % 3 == 0, true);
-    assert!((often - 1.0).abs() < 0.05, "every third: {often}");
-    // Five times the explicit step: g's term pumps (measured 43-fold; 3.3e5 without the shift).
-    let stiff = free_flight_with_cuts(5.0, |n| n % 7 == 0, true);
-    assert!(stiff < 100.0, "k = 5, every seventh: {stiff}");
-    eprintln!(
-        "shifted cuts, Q(end)/Q(separation): k = 2: {once} (one), {periodic} (every seventh), \
-         {often} (every third); k = 5: {stiff} (every seventh)"
+/// A clamped elastic beam (E = 1e6 Pa, rho = 1000 kg/m^3; 10 x 2 (x 2) cells of 0.1 m) at 3
+/// times its explicit stable step, every third step halved: Q never grows from one step to the
+/// next, and loses at each cut a share of the energy the step does not resolve (per mode and
+/// halved step, `((1 + x/2)^2 / ((1 + x/4) (1 + x)))^2` of the kinetic part, x = 2 g h^2 k / m:
+/// 1 - x/2 for small x, 0.79 at its least, at x = 2). Swung in a smooth shape (velocity
+/// `0.1 (x/L)^2` across it, mostly its first, resolved mode) it keeps 0.982 of Q over the ten
+/// cuts, in 2D and 3D; set vibrating in every mode (velocities `0.1 sin(1.7 i)`, mostly
+/// unresolved) 0.37 (2D) and 0.51 (3D). Its account closes either way (the clamped nodes'
+/// coupling is on the right-hand side of the velocity map).
+fn a_vibrating_beam_keeps_q<const D: usize>()
+where
+    softway::dim::Dim<D>: softway::dim::SpatialDim<D>,
+{
+    use softway::material::{LinearElastic, Material};
+    use softway::simulation::Body;
+    let (e, rho) = (1e6, 1000.0);
+    let h = 3.0 * 0.1 / f64::sqrt(e / rho);
+    let mesh = common::block::<D>([1.0, 0.2, 0.2], [10, 2, 2], false);
+    let material = Material::LinearElastic(LinearElastic::new(e, 0.3, rho).unwrap());
+    let beam = Body::new("beam", mesh, material).with_constraint_in_box(
+        common::vec_d::<D>([-1e-9, -1.0, -1.0]),
+        common::vec_d::<D>([1e-9, 1.0, 1.0]),
+        [Some(0.0); D],
     );
+    let run = |cuts: bool, smooth: bool| {
+        let mut sim = Simulation::<D>::builder()
+            .time_step(h)
+            .body(beam.clone())
+            .build()
+            .unwrap();
+        let mut state = sim.state().clone();
+        let reference = &sim.model().bodies[0].mesh;
+        for (n, p) in reference.nodes.iter().enumerate() {
+            if p[0] > 1e-9 {
+                for k in 0..D {
+                    let i = n * D + k;
+                    state.velocity[i] = if smooth {
+                        if k == 1 {
+                            0.1 * p[0] * p[0]
+                        } else {
+                            0.0
+                        }
+                    } else {
+                        0.1 * (1.7 * i as f64).sin()
+                    };
+                }
+            }
+        }
+        sim.set_state(state.clone()).unwrap();
+        // What stability is measured against: the energy set here.
+        state.reference_energy = sim.energies().total();
+        sim.set_state(state).unwrap();
+        let q0 = sim.scheme_energy();
+        let mut q = q0;
+        for n in 1..=30 {
+            if cuts && n % 3 == 0 {
+                sim.advance(0.5 * h, &mut NullRecorder).unwrap();
+                sim.advance(0.5 * h, &mut NullRecorder).unwrap();
+            } else {
+                sim.step().unwrap();
+            }
+            let now = sim.scheme_energy();
+            assert!(now <= q * (1.0 + 1e-9), "{D}D step {n}: Q {now} after {q}");
+            q = now;
+        }
+        let account = (q - q0 + sim.energies().dissipated).abs() / q0;
+        (q / q0, account)
+    };
+    for smooth in [true, false] {
+        let (steady, steady_account) = run(false, smooth);
+        assert!((steady - 1.0).abs() < 1e-9, "{D}D, no cut: {steady}");
+        assert!(steady_account < 1e-9, "{D}D, no cut: {steady_account}");
+        let (cut, account) = run(true, smooth);
+        eprintln!(
+            "{D}D beam, {}, every third step halved: Q(end)/Q(0) {cut}, account of Q \
+             {account:.2e}",
+            if smooth { "smooth" } else { "every mode" }
+        );
+        assert!(account < 1e-9, "{D}D: {account}");
+        if smooth {
+            assert!(cut > 0.97, "{D}D, smooth: {cut}");
+        } else {
+            assert!(cut > 0.25, "{D}D, every mode: {cut}");
+        }
+    }
+}
+
+#[test]
+fn a_vibrating_beam_keeps_q_d2() {
+    a_vibrating_beam_keeps_q::<2>();
+}
+
+#[test]
+fn a_vibrating_beam_keeps_q_d3() {
+    a_vibrating_beam_keeps_q::<3>();
+}
+
+/// A rigid motion is left as it is: a block flying at 1 m/s with steps halved ends where and
+/// as fast as the one without (the shift `a (h v - h' v')` and the map cancel for K v = 0).
+fn a_rigid_flight_is_left_alone<const D: usize>()
+where
+    softway::dim::Dim<D>: softway::dim::SpatialDim<D>,
+{
+    use softway::material::{LinearElastic, Material};
+    use softway::simulation::Body;
+    let mesh = common::block::<D>([0.2, 0.2, 0.2], [2, 2, 2], false);
+    let material = Material::LinearElastic(LinearElastic::new(1e6, 0.3, 1000.0).unwrap());
+    let body =
+        Body::new("block", mesh, material).with_velocity(common::vec_d::<D>([1.0, -0.5, 0.25]));
+    let run = |cuts: bool| {
+        let mut sim = Simulation::<D>::builder()
+            .time_step(1e-2)
+            .body(body.clone())
+            .build()
+            .unwrap();
+        for n in 1..=10 {
+            if cuts && n % 3 == 0 {
+                sim.advance(5e-3, &mut NullRecorder).unwrap();
+                sim.advance(5e-3, &mut NullRecorder).unwrap();
+            } else {
+                sim.step().unwrap();
+            }
+        }
+        sim.state().clone()
+    };
+    let (whole, halved) = (run(false), run(true));
+    for (a, b) in whole.displacement.iter().zip(&halved.displacement) {
+        assert!((a - b).abs() < 1e-12, "{D}D: displacement {a} against {b}");
+    }
+    for (a, b) in whole.velocity.iter().zip(&halved.velocity) {
+        assert!((a - b).abs() < 1e-12, "{D}D: velocity {a} against {b}");
+    }
+}
+
+#[test]
+fn a_rigid_flight_is_left_alone_d2() {
+    a_rigid_flight_is_left_alone::<2>();
+}
+
+#[test]
+fn a_rigid_flight_is_left_alone_d3() {
+    a_rigid_flight_is_left_alone::<3>();
 }

@@ -172,16 +172,22 @@ where
     /// `M/h + alpha C + (alpha^2 h / 2) K` with prescribed rows and columns replaced by the
     /// identity (scaled to the mean diagonal, for conditioning).
     fn iteration_matrix(&self, h: f64, d1: f64) -> SparseColMat<usize, f64> {
+        let alpha = self.model.settings.scheme.alpha;
+        self.combined_matrix(1.0 / h, alpha, d1 * h)
+    }
+
+    /// `m M + c C + k K` with prescribed rows and columns replaced by the identity (scaled to
+    /// the mean diagonal, for conditioning).
+    fn combined_matrix(&self, m: f64, c: f64, k: f64) -> SparseColMat<usize, f64> {
         let mut a = self.matrices.mass.clone();
         let (m_vals, k_vals) = (self.matrices.mass.val(), self.matrices.stiffness.val());
-        let alpha = self.model.settings.scheme.alpha;
         let col_ptr = a.symbolic().col_ptr().to_vec();
         let row_idx = a.symbolic().row_idx().to_vec();
         let vals = a.val_mut();
         for i in 0..vals.len() {
-            vals[i] = m_vals[i] / h + d1 * h * k_vals[i];
-            if let Some(c) = &self.damping {
-                vals[i] += alpha * c.val()[i];
+            vals[i] = m * m_vals[i] + k * k_vals[i];
+            if let Some(damping) = &self.damping {
+                vals[i] += c * damping.val()[i];
             }
         }
         let mut diag_sum = 0.0;
@@ -216,6 +222,31 @@ where
     /// Solves with the contact-free iteration matrix in place.
     pub(super) fn solve_contact_free(&self, x: &mut [f64]) {
         self.system().cholesky.solve_in_place(x);
+    }
+
+    /// Solves `(M + k K) x = rhs` in place on the free unknowns (prescribed ones keep their
+    /// right-hand side divided by the identity's scale: pass them zero). It factors with the
+    /// cached system's symbolic analysis (the same pattern), and drops that system's numeric
+    /// factor: the next [`Self::ensure_system`] refactors.
+    pub(super) fn solve_mass_plus_stiffness(&mut self, k: f64, rhs: &mut [f64]) -> Result<()> {
+        let matrix = self.combined_matrix(1.0, 0.0, k);
+        let mut cholesky = match self.caches.system.take() {
+            Some(s) => s.cholesky,
+            None => SparseCholesky::analyse_with(&matrix, self.model.settings.ordering, D)?,
+        };
+        let factored = cholesky.factor(&matrix, self.state.step + 1);
+        if factored.is_ok() {
+            cholesky.solve_in_place(rhs);
+        }
+        // Kept for its analysis only: a step size no step takes, so that the next
+        // `ensure_system` refactors.
+        self.caches.system = Some(IterationSystem {
+            time_step: f64::NAN,
+            diagonal: diagonal_of(&matrix),
+            matrix,
+            cholesky,
+        });
+        factored
     }
 
     /// The iteration matrix with the contact entries added; re-analysed when the contact adds

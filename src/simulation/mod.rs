@@ -31,6 +31,7 @@ mod overlap;
 mod rotation;
 pub mod state;
 mod step;
+mod step_change;
 mod symmetric_matrix;
 mod weighted_projection;
 
@@ -572,6 +573,7 @@ where
             displacement: vec![0.0; ndof],
             gap_displacement: vec![0.0; ndof],
             velocity,
+            scheme_time_step: 0.0,
             external_work: 0.0,
             dissipated_energy: 0.0,
             loads: vec![0.0; ndof],
@@ -706,6 +708,13 @@ where
                     self.model.bodies.len(),
                     self.model.obstacles.len()
                 ),
+            ));
+        }
+        if !(state.scheme_time_step >= 0.0 && state.scheme_time_step.is_finite()) {
+            return Err(invalid(
+                "state.scheme_time_step",
+                state.scheme_time_step,
+                "a finite step size >= 0 [s] (0: any)",
             ));
         }
         if state.gap_displacement.is_empty() {

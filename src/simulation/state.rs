@@ -26,6 +26,12 @@ pub struct State {
     /// It differs from `displacement` by the scheme's `h (beta - 1/2) (v - v(0))` per node.
     #[serde(default)]
     pub gap_displacement: Vec<f64>,
+    /// The step size (s) the displacement and velocity are the scheme's variables for: the
+    /// last step's. A step of another size first re-expresses them for its own so that the
+    /// energy the scheme conserves does not grow (`simulation/step_change.rs`). 0 (the
+    /// initial state, and states from before this field): valid for any step.
+    #[serde(default)]
+    pub scheme_time_step: f64,
     /// Cumulative external work (J).
     pub external_work: f64,
     /// Cumulative dissipation (J).

@@ -180,6 +180,9 @@ where
     ) -> Result<StepReport> {
         let first = self.advance_cut(0.5 * h, recorder, depth + 1, false)?;
         let mut second = self.advance_cut(0.5 * h, recorder, depth + 1, last_piece)?;
+        // The state ends as the scheme's variables for the step that was asked for.
+        self.change_step_to(h)?;
+        second.energies = self.energies();
         second.iterations += first.iterations;
         second.cuts += first.cuts + 1;
         second.held_contacts = second.held_contacts.max(first.held_contacts);
@@ -250,8 +253,7 @@ where
         }
     }
 
-    /// The energy that the time scheme conserves at the current state, for the configured
-    /// step (J):
+    /// The energy that the time scheme conserves at the current state (J):
     /// `Q = 1/2 v^T M v + U(u) + h/2 (alpha - beta) u^T K v + h^2/4 (alpha^2 - 2 alpha beta) v^T K v`.
     /// A step of a linear law with `beta = 1 - alpha` keeps it exactly, up to the work
     /// `f . (du + h/2 (alpha - beta) dv)` of constant external forces f; other `beta` scale
@@ -260,16 +262,23 @@ where
     /// E swings along the orbit while Q stays, and the difference E - Q is that swing. For a
     /// law that is not linear, U is its stored energy and K the reference stiffness: Q is then
     /// kept only approximately.
+    ///
+    /// The step is the one the state's (u, v) belong to (`State::scheme_time_step`: the last
+    /// step's), or the configured one before the first step.
     pub fn scheme_energy(&self) -> f64 {
         let s = &self.state;
-        let h = self.model.settings.time_step;
+        let h = if s.scheme_time_step > 0.0 {
+            s.scheme_time_step
+        } else {
+            self.model.settings.time_step
+        };
         self.scheme_energy_at(&s.displacement, &s.velocity, h, &s.material_history)
     }
 
     /// [`Self::scheme_energy`] at displacements `u`, velocities `v`, step `h` and material
     /// history `history` (the transfer matrix's invariant form `omega(x, T x)`, omega the
     /// symplectic form, written with M and K).
-    fn scheme_energy_at(&self, u: &[f64], v: &[f64], h: f64, history: &[f64]) -> f64 {
+    pub(super) fn scheme_energy_at(&self, u: &[f64], v: &[f64], h: f64, history: &[f64]) -> f64 {
         let SpaceTimeScheme { alpha, beta } = self.model.settings.scheme;
         0.5 * assembly::symmetric_dot(&self.matrices.mass, v, v)
             + self.internal_energy(u, history)
@@ -321,6 +330,7 @@ where
         recorder: &mut dyn Recorder<D>,
         count_step: bool,
     ) -> Result<StepReport> {
+        self.change_step_to(h)?;
         // The cached factorisations the state names first: rebuilding one refactors the
         // contact-free matrix for its own step size, which may not be this step's.
         self.sync_contact_factors()?;

@@ -291,12 +291,22 @@ fn checkpoints_change_nothing_and_resume_bit_for_bit() {
 /// The run's monitor is in the checkpoint: a resumed run measures the energy created from the
 /// run's start, so it stops where the uninterrupted run stops, with the same history and
 /// warnings. (It measured from the checkpoint before: the audit's explicit-projection stack
-/// stopped at step 89, resumed from step 80 it ran to step 170.) The ring drop with zeta =
-/// 1e16 creates energy: a warning, then exit 3 a few steps later.
+/// stopped at step 89, resumed from step 80 it ran to step 170.) The ring drop under explicit
+/// projection at twice its step creates energy: a warning at step 63, exit 3 at step 105. (With
+/// zeta = 1e16, which this test used, the energy came from its 63 cut steps pumping the
+/// unresolved modes; cut steps keep the scheme's energy now, and that run fails to converge
+/// instead.)
 #[test]
 fn a_resumed_run_stops_where_the_uninterrupted_run_stops() {
     let dir = scratch("monitor");
-    let stiff = ["--set", "contact.penalty=1e16", "--checkpoint-every", "10"];
+    let stiff = [
+        "--set",
+        "contact.method=\"explicit_projection\"",
+        "--set",
+        "simulation.time_step=2e-3",
+        "--checkpoint-every",
+        "10",
+    ];
     let out = dir.join("out");
     let o = softway().args(run_args(&out, &stiff)).output().unwrap();
     assert_eq!(o.status.code(), Some(3), "{}", stderr(&o));

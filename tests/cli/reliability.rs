@@ -789,7 +789,7 @@ fn step_cuts_are_a_warning() {
     assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
     assert!(
         warnings(&out).iter().any(|w| w
-            == "4 step(s) did not converge at full size and were cut (4 cut(s) in all), the \
+            == "2 step(s) did not converge at full size and were cut (3 cut(s) in all), the \
                 first at step 109 (t = 1.090000e-1 s); a smaller time_step avoids the cuts"),
         "{:?}",
         warnings(&out)
