@@ -230,3 +230,73 @@ fn a_rigid_flight_is_left_alone_d2() {
 fn a_rigid_flight_is_left_alone_d3() {
     a_rigid_flight_is_left_alone::<3>();
 }
+
+/// A plate pushing a soft block at 2 m/s (implicit projection, the default; 0.2 m block,
+/// E = 1e5 Pa, no gravity), steps of 2 ms with one in three taken as two halves: no penetration
+/// after any step, as without the halves (each change of step comes at the start of a step,
+/// whose end-of-step projection holds the nodes on the plate), and the block is pushed as far
+/// to 1 %.
+fn a_pushed_block_stays_on_the_plate<const D: usize>()
+where
+    softway::dim::Dim<D>: softway::dim::SpatialDim<D>,
+{
+    use softway::contact::{Obstacle, ObstacleShape};
+    use softway::material::{LinearElastic, Material};
+    use softway::simulation::Body;
+    let mesh = common::block::<D>([0.2, 0.2, 0.2], [4, 4, 4], false);
+    let material = Material::LinearElastic(LinearElastic::new(1e5, 0.3, 1000.0).unwrap());
+    let plate = Obstacle::new(
+        "plate",
+        ObstacleShape::Halfspace {
+            point: common::vec_d::<D>([0.0, 0.0, 0.0]),
+            normal: common::vec_d::<D>([1.0, 0.0, 0.0]),
+        },
+    )
+    .with_velocity(common::vec_d::<D>([2.0, 0.0, 0.0]));
+    let h = 2e-3;
+    let run = |cuts: bool| {
+        let mut sim = Simulation::<D>::builder()
+            .time_step(h)
+            .body(Body::new("block", mesh.clone(), material))
+            .obstacle(plate.clone())
+            .build()
+            .unwrap();
+        let mut deepest: f64 = 0.0;
+        for n in 1..=60 {
+            if cuts && n % 3 == 0 {
+                sim.advance(0.5 * h, &mut NullRecorder).unwrap();
+                deepest = deepest.max(sim.current_penetration());
+                sim.advance(0.5 * h, &mut NullRecorder).unwrap();
+            } else {
+                sim.step().unwrap();
+            }
+            deepest = deepest.max(sim.current_penetration());
+        }
+        let mean_u = sim.state().displacement.iter().step_by(D).sum::<f64>()
+            / (sim.state().displacement.len() / D) as f64;
+        (deepest, mean_u)
+    };
+    let (whole, pushed) = run(false);
+    let (halved, pushed_halved) = run(true);
+    eprintln!(
+        "{D}D: deepest {whole:.2e} m (whole steps), {halved:.2e} m (one in three halved); the \
+         block moved {pushed:.4} and {pushed_halved:.4} m"
+    );
+    assert!(whole < 1e-9, "{D}D, whole steps: {whole} m");
+    assert!(halved < 1e-9, "{D}D, halved steps: {halved} m");
+    assert!(pushed > 0.1, "{D}D: the block moved {pushed} m");
+    assert!(
+        (pushed - pushed_halved).abs() < 1e-2 * pushed,
+        "{D}D: {pushed} m against {pushed_halved} m"
+    );
+}
+
+#[test]
+fn a_pushed_block_stays_on_the_plate_d2() {
+    a_pushed_block_stays_on_the_plate::<2>();
+}
+
+#[test]
+fn a_pushed_block_stays_on_the_plate_d3() {
+    a_pushed_block_stays_on_the_plate::<3>();
+}

@@ -27,9 +27,10 @@ pub struct State {
     #[serde(default)]
     pub gap_displacement: Vec<f64>,
     /// The step size (s) the displacement and velocity are the scheme's variables for: the
-    /// last step's. A step of another size first re-expresses them for its own so that the
-    /// energy the scheme conserves does not grow (`simulation/step_change.rs`). 0 (the
-    /// initial state, and states from before this field): valid for any step.
+    /// last step's (a cut step's last piece's). A step of another size first re-expresses them
+    /// for its own so that the energy the scheme conserves does not grow
+    /// (`simulation/step_change.rs`). 0 (the initial state, and states from before this field):
+    /// valid for any step.
     #[serde(default)]
     pub scheme_time_step: f64,
     /// Cumulative external work (J).

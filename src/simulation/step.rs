@@ -178,11 +178,31 @@ where
         depth: usize,
         last_piece: bool,
     ) -> Result<StepReport> {
+        // Each half re-expresses the state for its size as it starts (`step_change.rs`), and
+        // the next whole step for its own: a change at the start of a step leaves the step's
+        // own end-of-step projection to put back what it moved into a master. The obstacles
+        // move with the bodies for the halves (their velocities, the step's, are kept to move
+        // them back), and back to their poses when the halves end.
+        let SpaceTimeScheme { alpha, beta } = self.model.settings.scheme;
+        // None before the first step: the bodies are not re-expressed (valid for any step).
+        let lag = if self.state.scheme_time_step == h {
+            0.25 * (alpha - beta) * h
+        } else {
+            0.0
+        };
+        let velocities = (
+            self.state.obstacle_velocities.clone(),
+            self.state.obstacle_angular_velocities.clone(),
+        );
+        self.shift_obstacles(lag);
         let first = self.advance_cut(0.5 * h, recorder, depth + 1, false)?;
         let mut second = self.advance_cut(0.5 * h, recorder, depth + 1, last_piece)?;
-        // The state ends as the scheme's variables for the step that was asked for.
-        self.change_step_to(h)?;
-        second.energies = self.energies();
+        let last = std::mem::replace(&mut self.state.obstacle_velocities, velocities.0);
+        let last_angular =
+            std::mem::replace(&mut self.state.obstacle_angular_velocities, velocities.1);
+        self.shift_obstacles(-lag);
+        self.state.obstacle_velocities = last;
+        self.state.obstacle_angular_velocities = last_angular;
         second.iterations += first.iterations;
         second.cuts += first.cuts + 1;
         second.held_contacts = second.held_contacts.max(first.held_contacts);
@@ -591,6 +611,7 @@ where
         let state = &mut self.state;
         state.step = if count_step { step } else { state.step };
         state.time = t0 + h;
+        state.scheme_time_step = h;
         state.displacement = u1;
         state.gap_displacement = gap_u1;
         state.velocity = v1;

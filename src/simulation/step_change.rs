@@ -22,6 +22,16 @@
 //!
 //! The velocity map needs the linear law's K (the reference stiffness is the law's) and
 //! `g > 0` (Q positive definite): otherwise only w is kept.
+//!
+//! Contact sees the shift: a node riding a plate at 50 m/s moves `a (h - h') v` (6e-6 m at the
+//! tube crush's step) while the plate follows the clock, which is also the pose a host drives it
+//! to. So a change is made at the start of a step (a cut step's halves each re-express the
+//! state for their size as they start, and the next whole step for its own), where the step
+//! itself resolves what moved, and for a cut step's halves the obstacles move with the bodies
+//! (by their velocity times the same lag) and back to their poses when the halves end
+//! ([`Simulation::shift_obstacles`]): the nodes on a moving plate then end the cut step a lag's
+//! travel ahead of it, and the next step's change puts them back on it. The gaps'
+//! displacement moves with the configuration.
 
 use super::Simulation;
 use crate::assembly;
@@ -34,13 +44,15 @@ where
     Dim<D>: SpatialDim<D>,
 {
     /// Re-expresses the state for steps of `h` (s) when it holds the scheme's variables for
-    /// another step size (the module documentation); the state then holds them for `h`.
+    /// another step size (the module documentation); the state then holds them for `h`. A
+    /// state valid for any step (`scheme_time_step` 0: before the first step) is left as it
+    /// is; the step that commits sets its own size.
     pub(super) fn change_step_to(&mut self, h: f64) -> Result<()> {
         let from = self.state.scheme_time_step;
         if from > 0.0 && from != h {
             self.change_step(from, h)?;
+            self.state.scheme_time_step = h;
         }
-        self.state.scheme_time_step = h;
         Ok(())
     }
 
@@ -77,15 +89,17 @@ where
         } else {
             v.clone()
         };
-        let u_new: Vec<f64> = (0..ndof)
-            .map(|i| {
-                if free(i) {
-                    u[i] + a * (from * v[i] - to * v_new[i])
-                } else {
-                    u[i]
-                }
-            })
+        // Every node, prescribed ones too (their velocity is prescribed, not their position),
+        // and the gaps' displacement with them: contact sees the same relative positions.
+        let shift: Vec<f64> = (0..ndof)
+            .map(|i| a * (from * v[i] - to * v_new[i]))
             .collect();
+        let u_new: Vec<f64> = (0..ndof).map(|i| u[i] + shift[i]).collect();
+        if self.state.gap_displacement.len() == ndof {
+            for (g, d) in self.state.gap_displacement.iter_mut().zip(&shift) {
+                *g += d;
+            }
+        }
         // The shadow displacement does not move, so external forces do no work in Q's terms;
         // what Q loses is dissipated.
         let history = &self.state.material_history;
@@ -95,5 +109,33 @@ where
         self.state.displacement = u_new;
         self.state.velocity = v_new;
         Ok(())
+    }
+
+    /// Moves every obstacle by its velocity and angular velocity times `lag` (s) (a negative
+    /// lag moves it back). A cut step's halves take the bodies re-expressed for half the step,
+    /// whose nodes that ride a moving obstacle have moved by `lag` times their velocity: the
+    /// obstacles move with them for the halves, and back when the cut step ends, so that they
+    /// are at their clock's (or their host's) pose after the step.
+    pub(super) fn shift_obstacles(&mut self, lag: f64) {
+        for (t, v) in self
+            .state
+            .obstacle_translations
+            .iter_mut()
+            .zip(&self.state.obstacle_velocities)
+        {
+            *t += lag * v;
+        }
+        let (a, r) = (<Dim<D>>::ANGULAR, <Dim<D>>::ROTATION);
+        for k in 0..self.model.obstacles.len() {
+            let Some(omega) = self.state.obstacle_angular_velocities.get(k * a..k * a + a) else {
+                continue;
+            };
+            if omega.iter().any(|w| *w != 0.0) {
+                let turn: Vec<f64> = omega.iter().map(|w| w * lag).collect();
+                let rotation = &mut self.state.obstacle_rotations[k * r..k * r + r];
+                let next = <Dim<D>>::turned(rotation, &turn);
+                rotation.copy_from_slice(&next);
+            }
+        }
     }
 }

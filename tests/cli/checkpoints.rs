@@ -293,7 +293,7 @@ fn checkpoints_change_nothing_and_resume_bit_for_bit() {
 /// warnings. (It measured from the checkpoint before: the audit's explicit-projection stack
 /// stopped at step 89, resumed from step 80 it ran to step 170.) The ring drop under explicit
 /// projection at twice its step creates energy: a warning at step 63, exit 3 at step 105. (With
-/// zeta = 1e16, which this test used, the energy came from its 63 cut steps pumping the
+/// zeta = 1e16, which this test used, the energy came from its 63 cuts pumping the
 /// unresolved modes; cut steps keep the scheme's energy now, and that run fails to converge
 /// instead.)
 #[test]
