@@ -150,8 +150,8 @@ pub enum Error {
     /// exceeded the input (E(0) + |external work|) by more than
     /// [`ENERGY_FAILURE`](crate::simulation::ENERGY_FAILURE) of it.
     #[error(
-        "energy created at step {step} (t = {time:.6e} s): the energy the time scheme \
-         conserves (kinetic + internal + contact) plus the dissipated energy is {energy:.3e} J, \
+        "energy created at step {step} (t = {time:.6e} s): {measure} plus the dissipated \
+         energy is {energy:.3e} J, \
          {percent:.1}% above the input E(0) + |external work| = {input:.3e} J (the run stops \
          above 1000%); {advice}"
     )]
@@ -160,7 +160,10 @@ pub enum Error {
         step: usize,
         /// Time at the end of the step (s).
         time: f64,
-        /// The scheme's conserved energy Q(t) + max(dissipated, 0) (J).
+        /// What was measured: the scheme's conserved energy Q, or (outside the stability
+        /// window, where Q bounds nothing) the mechanical energy E.
+        measure: String,
+        /// Q(t) (or E(t)) + max(dissipated, 0) (J).
         energy: f64,
         /// E(0) + |external work| (J).
         input: f64,

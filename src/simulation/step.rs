@@ -32,10 +32,9 @@ where
         let scheme = self.model.settings.scheme;
         if !scheme.is_unconditionally_stable() {
             return format!(
-                "alpha = {}, beta = {} lie outside the unconditionally stable window: use alpha \
-                 >= sqrt(2)/2 ~ 0.7071 with beta in [1 - alpha, alpha^2 - alpha + 1/2], or a \
-                 smaller time_step",
-                scheme.alpha, scheme.beta
+                "{} lie outside the unconditionally stable window: use alpha >= sqrt(2)/2 ~ \
+                 0.7071 with beta in [1 - alpha, alpha^2 - alpha + 1/2], or a smaller time_step",
+                scheme.parameters()
             );
         }
         let contact = if self.caches.detector.is_none() {
@@ -58,17 +57,15 @@ where
         if non_finite {
             // A value left the floating-point range: the scene's numbers come first.
             return format!(
-                "the time scheme (alpha = {}, beta = {}) is unconditionally stable: look first \
-                 for {magnitudes}, then {contact}bodies that overlap at the start (softway \
-                 check reports them)",
-                scheme.alpha, scheme.beta
+                "the time scheme ({}) is unconditionally stable: look first for {magnitudes}, \
+                 then {contact}bodies that overlap at the start (softway check reports them)",
+                scheme.parameters()
             );
         }
         format!(
-            "the time scheme (alpha = {}, beta = {}) is unconditionally stable, so look \
-             elsewhere: {contact}bodies that overlap at the start (softway check reports them), \
-             or {magnitudes}",
-            scheme.alpha, scheme.beta
+            "the time scheme ({}) is unconditionally stable, so look elsewhere: {contact}bodies \
+             that overlap at the start (softway check reports them), or {magnitudes}",
+            scheme.parameters()
         )
     }
 
@@ -181,8 +178,8 @@ where
         // Each half re-expresses the state for its size as it starts (`step_change.rs`), and
         // the next whole step for its own: a change at the start of a step leaves the step's
         // own end-of-step projection to put back what it moved into a master. The obstacles
-        // move with the bodies for the halves (their velocities, the step's, are kept to move
-        // them back), and back to their poses when the halves end.
+        // move with the bodies for the halves, and back to their poses when the halves end, at
+        // the step's velocities (the halves may end at others).
         let SpaceTimeScheme { alpha, beta } = self.model.settings.scheme;
         // None before the first step: the bodies are not re-expressed (valid for any step).
         let lag = if self.state.scheme_time_step == h {
@@ -194,15 +191,10 @@ where
             self.state.obstacle_velocities.clone(),
             self.state.obstacle_angular_velocities.clone(),
         );
-        self.shift_obstacles(lag);
+        self.shift_obstacles(lag, &velocities);
         let first = self.advance_cut(0.5 * h, recorder, depth + 1, false)?;
         let mut second = self.advance_cut(0.5 * h, recorder, depth + 1, last_piece)?;
-        let last = std::mem::replace(&mut self.state.obstacle_velocities, velocities.0);
-        let last_angular =
-            std::mem::replace(&mut self.state.obstacle_angular_velocities, velocities.1);
-        self.shift_obstacles(-lag);
-        self.state.obstacle_velocities = last;
-        self.state.obstacle_angular_velocities = last_angular;
+        self.shift_obstacles(-lag, &velocities);
         second.iterations += first.iterations;
         second.cuts += first.cuts + 1;
         second.held_contacts = second.held_contacts.max(first.held_contacts);

@@ -111,23 +111,19 @@ where
         Ok(())
     }
 
-    /// Moves every obstacle by its velocity and angular velocity times `lag` (s) (a negative
-    /// lag moves it back). A cut step's halves take the bodies re-expressed for half the step,
+    /// Moves every obstacle by `velocities` (its linear and angular velocities, as in the
+    /// state) times `lag` (s) (a negative lag moves it back). A cut step's halves take the bodies re-expressed for half the step,
     /// whose nodes that ride a moving obstacle have moved by `lag` times their velocity: the
     /// obstacles move with them for the halves, and back when the cut step ends, so that they
     /// are at their clock's (or their host's) pose after the step.
-    pub(super) fn shift_obstacles(&mut self, lag: f64) {
-        for (t, v) in self
-            .state
-            .obstacle_translations
-            .iter_mut()
-            .zip(&self.state.obstacle_velocities)
-        {
+    pub(super) fn shift_obstacles(&mut self, lag: f64, velocities: &ObstacleVelocities) {
+        let (linear, angular) = velocities;
+        for (t, v) in self.state.obstacle_translations.iter_mut().zip(linear) {
             *t += lag * v;
         }
         let (a, r) = (<Dim<D>>::ANGULAR, <Dim<D>>::ROTATION);
         for k in 0..self.model.obstacles.len() {
-            let Some(omega) = self.state.obstacle_angular_velocities.get(k * a..k * a + a) else {
+            let Some(omega) = angular.get(k * a..k * a + a) else {
                 continue;
             };
             if omega.iter().any(|w| *w != 0.0) {
@@ -139,3 +135,6 @@ where
         }
     }
 }
+
+/// The obstacles' linear and angular velocities, laid out as in the state.
+pub(super) type ObstacleVelocities = (Vec<f64>, Vec<f64>);

@@ -88,6 +88,16 @@ impl SpaceTimeScheme {
         b >= 1.0 - a - tol && b <= a * a - a + 0.5 + tol
     }
 
+    /// `alpha = A, beta = B` for messages, each to 12 significant digits (beta = 1 - alpha
+    /// reads 0.297, not 0.29700000000000004).
+    pub fn parameters(&self) -> String {
+        let short = |x: f64| {
+            let s = format!("{:.12}", x);
+            s.trim_end_matches('0').trim_end_matches('.').to_string()
+        };
+        format!("alpha = {}, beta = {}", short(self.alpha), short(self.beta))
+    }
+
     /// A warning for parameters outside the window, `None` inside it.
     pub fn stability_warning(&self) -> Option<String> {
         if self.is_unconditionally_stable() {
@@ -103,9 +113,9 @@ impl SpaceTimeScheme {
             String::new()
         };
         Some(format!(
-            "alpha = {}, beta = {} is outside the unconditional stability window \
+            "{} is outside the unconditional stability window \
              1 - alpha <= beta <= alpha^2 - alpha + 1/2 (alpha >= sqrt(2)/2){limit}",
-            self.alpha, self.beta
+            self.parameters()
         ))
     }
 

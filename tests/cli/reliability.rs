@@ -761,6 +761,55 @@ fn energy_creation_is_a_warning() {
     );
 }
 
+/// The bundled ring drop at alpha = 0.703 (beta = 1 - alpha: outside the stability window,
+/// stable only while k h^2 / m <= 345): its stiff modes grow after the landing while the
+/// scheme's Q, which is no norm there, stays put. The monitor watches the mechanical energy
+/// too: a warning from step 297 and exit status 3 at step 430 (11x the input), naming the
+/// scheme. (Watching Q only, the run ended at 0.6 s with exit 0, no energy warning and an
+/// account off by 2.3x its input.)
+#[test]
+fn a_scheme_outside_its_window_that_gains_energy_is_stopped() {
+    let dir = tempdir();
+    let file = repo().join("fixtures/scenes/ring_drop.toml");
+    let run = |end: &str, out: &str| {
+        let out = dir.path().join(out);
+        let o = run_in(
+            dir.path(),
+            &[
+                "run",
+                file.to_str().unwrap(),
+                "--out",
+                out.to_str().unwrap(),
+                "--set",
+                "simulation.alpha=0.703",
+                "--set",
+                end,
+            ],
+        );
+        (o, out)
+    };
+    let (o, out) = run("simulation.end_time=0.35", "short");
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let w = warnings(&out);
+    assert!(
+        w.iter().any(|w| w.starts_with(
+            "the run created energy: the mechanical energy (kinetic + internal + contact, which \
+             the time scheme does not bound outside its stability window) plus the dissipated \
+             energy exceeded the input E(0) + |external work| by 5.2% at step 297"
+        ) && w.contains("the time scheme is the likely cause: alpha = 0.703")),
+        "{w:?}"
+    );
+    let (o, _) = run("simulation.end_time=0.6", "whole");
+    assert_eq!(o.status.code(), Some(3), "{}", stderr(&o));
+    let err = error_line(&o);
+    assert!(
+        err.starts_with(
+            "error: energy created at step 430 (t = 4.300000e-1 s): the mechanical energy"
+        ) && err.contains("the time scheme is the likely cause"),
+        "{err}"
+    );
+}
+
 /// The bundled tilting floor with Newton held to 20 iterations cuts four steps from step 109
 /// on (stick and slip on the turning plate): the summary says so. (With the default 50 it cut
 /// its step 131 until a stalled Newton was retried with the line search before the cut; the
