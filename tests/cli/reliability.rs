@@ -96,6 +96,18 @@ fn run_bounded(dir: &Path, args: &[&str], limit: Duration) -> Output {
     child.wait_with_output().unwrap()
 }
 
+/// `softway run FILE --out OUT` with `sets` (further arguments, `--set` pairs), in `dir`.
+fn run_scene(dir: &Path, file: &Path, out: &Path, sets: &[&str]) -> Output {
+    let mut args = vec![
+        "run",
+        file.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ];
+    args.extend_from_slice(sets);
+    run_in(dir, &args)
+}
+
 fn error_line(o: &Output) -> String {
     stderr(o)
         .lines()
@@ -297,15 +309,7 @@ fn overlap_at_t0_is_reported() {
         stdout(&o)
     );
     let out = dir.path().join("out");
-    let o = run_in(
-        dir.path(),
-        &[
-            "run",
-            file.to_str().unwrap(),
-            "--out",
-            out.to_str().unwrap(),
-        ],
-    );
+    let o = run_scene(dir.path(), &file, &out, &[]);
     assert_eq!(o.status.code(), Some(3), "{}", stderr(&o));
     assert!(
         stderr(&o).contains("error: energy created at step 1 "),
@@ -421,15 +425,7 @@ fn a_block_through_the_floor_stops_the_run() {
             ),
     );
     let out = dir.path().join("out");
-    let o = run_in(
-        dir.path(),
-        &[
-            "run",
-            file.to_str().unwrap(),
-            "--out",
-            out.to_str().unwrap(),
-        ],
-    );
+    let o = run_scene(dir.path(), &file, &out, &[]);
     let err = stderr(&o);
     assert_eq!(o.status.code(), Some(3), "{err}");
     assert!(
@@ -472,13 +468,11 @@ fn a_block_through_a_thin_plate_stops_the_run() {
     );
     let out = dir.path().join("out");
     let run = |h: &str, end: &str| {
-        run_in(
+        run_scene(
             dir.path(),
+            &file,
+            &out,
             &[
-                "run",
-                file.to_str().unwrap(),
-                "--out",
-                out.to_str().unwrap(),
                 "--set",
                 &format!("simulation.time_step={h}"),
                 "--set",
@@ -579,15 +573,7 @@ fn out_naming_a_file_is_invalid_up_front() {
     let (_scenes, file) = scene(BLOCK);
     let afile = dir.path().join("afile");
     fs::write(&afile, "").unwrap();
-    let o = run_in(
-        dir.path(),
-        &[
-            "run",
-            file.to_str().unwrap(),
-            "--out",
-            afile.to_str().unwrap(),
-        ],
-    );
+    let o = run_scene(dir.path(), &file, &afile, &[]);
     assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
     assert_eq!(
         stderr(&o),
@@ -666,16 +652,11 @@ fn factorisation_failure_names_no_solver_type() {
     let dir = tempdir();
     let (_scenes, file) = scene(BLOCK);
     let out = dir.path().join("out");
-    let o = run_in(
+    let o = run_scene(
         dir.path(),
-        &[
-            "run",
-            file.to_str().unwrap(),
-            "--out",
-            out.to_str().unwrap(),
-            "--set",
-            "bodies.0.material.density=1e-300",
-        ],
+        &file,
+        &out,
+        &["--set", "bodies.0.material.density=1e-300"],
     );
     assert_eq!(o.status.code(), Some(3), "{}", stderr(&o));
     let err = error_line(&o);
@@ -702,15 +683,7 @@ fn gross_energy_creation_exits_3() {
     let dir = tempdir();
     let (_scenes, file) = scene(IMPACT);
     let out = dir.path().join("out");
-    let o = run_in(
-        dir.path(),
-        &[
-            "run",
-            file.to_str().unwrap(),
-            "--out",
-            out.to_str().unwrap(),
-        ],
-    );
+    let o = run_scene(dir.path(), &file, &out, &[]);
     assert_eq!(o.status.code(), Some(3), "{}", stderr(&o));
     assert_eq!(
         error_line(&o),
@@ -735,13 +708,11 @@ fn energy_creation_is_a_warning() {
     let dir = tempdir();
     let (_scenes, file) = scene(IMPACT);
     let out = dir.path().join("out");
-    let o = run_in(
+    let o = run_scene(
         dir.path(),
+        &file,
+        &out,
         &[
-            "run",
-            file.to_str().unwrap(),
-            "--out",
-            out.to_str().unwrap(),
             "--set",
             "simulation.time_step=1e-3",
             "--set",
@@ -773,18 +744,11 @@ fn a_scheme_outside_its_window_that_gains_energy_is_stopped() {
     let file = repo().join("fixtures/scenes/ring_drop.toml");
     let run = |end: &str, out: &str| {
         let out = dir.path().join(out);
-        let o = run_in(
+        let o = run_scene(
             dir.path(),
-            &[
-                "run",
-                file.to_str().unwrap(),
-                "--out",
-                out.to_str().unwrap(),
-                "--set",
-                "simulation.alpha=0.703",
-                "--set",
-                end,
-            ],
+            &file,
+            &out,
+            &["--set", "simulation.alpha=0.703", "--set", end],
         );
         (o, out)
     };
@@ -820,13 +784,11 @@ fn step_cuts_are_a_warning() {
     let dir = tempdir();
     let out = dir.path().join("out");
     let file = repo().join("fixtures/scenes/tilting_floor.toml");
-    let o = run_in(
+    let o = run_scene(
         dir.path(),
+        &file,
+        &out,
         &[
-            "run",
-            file.to_str().unwrap(),
-            "--out",
-            out.to_str().unwrap(),
             "--set",
             "simulation.end_time=0.135",
             "--set",
@@ -852,13 +814,11 @@ fn deep_penetration_is_a_warning() {
     let dir = tempdir();
     let (_scenes, file) = scene(&BLOCK.replace("min = [0.0, 0.1]", "min = [0.0, 0.0]"));
     let out = dir.path().join("out");
-    let o = run_in(
+    let o = run_scene(
         dir.path(),
+        &file,
+        &out,
         &[
-            "run",
-            file.to_str().unwrap(),
-            "--out",
-            out.to_str().unwrap(),
             "--set",
             "contact.penalty=2e5",
             "--set",
@@ -885,13 +845,11 @@ fn a_block_sinking_through_the_floor_stops_the_run() {
     let dir = tempdir();
     let (_scenes, file) = scene(&BLOCK.replace("min = [0.0, 0.1]", "min = [0.0, 0.0]"));
     let out = dir.path().join("out");
-    let o = run_in(
+    let o = run_scene(
         dir.path(),
+        &file,
+        &out,
         &[
-            "run",
-            file.to_str().unwrap(),
-            "--out",
-            out.to_str().unwrap(),
             "--set",
             "contact.penalty=1e3",
             "--set",
@@ -990,16 +948,11 @@ fn a_block_at_rest_makes_no_cycle_warning() {
             ),
     );
     let out = dir.path().join("out");
-    let o = run_in(
+    let o = run_scene(
         dir.path(),
-        &[
-            "run",
-            file.to_str().unwrap(),
-            "--out",
-            out.to_str().unwrap(),
-            "--set",
-            "simulation.end_time=0.05",
-        ],
+        &file,
+        &out,
+        &["--set", "simulation.end_time=0.05"],
     );
     assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
     let w = warnings(&out);

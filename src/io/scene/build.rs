@@ -339,7 +339,13 @@ impl LoadedScene {
             return Err(self.error(
                 "contact.penalty",
                 "nothing",
-                format!("a penalty zeta > 0 [Pa/m] for method \"{}\"", c.method),
+                format!(
+                    "a penalty zeta > 0 [Pa/m] for method \"{}\" (it has no default: the \
+                     penetration is the contact pressure / zeta, and zeta l_e / E of 10 to 1000 \
+                     suits elements of size l_e and Young's modulus E; or method = \
+                     \"implicit_projection\", which needs none)",
+                    c.method
+                ),
             ));
         }
         self.positive("contact.gap_tolerance", c.gap_tolerance, "m")?;
