@@ -168,6 +168,7 @@ pub struct RunMonitor {
     /// stays, so the mechanical energy E is watched too, from `e0_mechanical`.
     #[serde(default)]
     outside_window: Option<String>,
+    /// E(0), for that watch.
     #[serde(default)]
     e0_mechanical: f64,
     /// Whether the warning threshold was crossed by E rather than Q.
@@ -426,9 +427,9 @@ impl RunMonitor {
     fn advice(&self) -> String {
         if let Some(window) = &self.outside_window {
             return format!(
-                "the time scheme is the likely cause: {window}; use alpha >= sqrt(2)/2 ~ 0.7071 \
-                 with beta in [1 - alpha, alpha^2 - alpha + 1/2] (the defaults, alpha = 3/4 and \
-                 beta = 1/4, are inside), or a smaller time_step"
+                "the time scheme is the likely cause: {window}; {} (the defaults, alpha = 3/4 \
+                 and beta = 1/4, are inside), or a smaller time_step",
+                crate::time::WINDOW_ADVICE
             );
         }
         if self.viscous {

@@ -32,9 +32,9 @@ where
         let scheme = self.model.settings.scheme;
         if !scheme.is_unconditionally_stable() {
             return format!(
-                "{} lie outside the unconditionally stable window: use alpha >= sqrt(2)/2 ~ \
-                 0.7071 with beta in [1 - alpha, alpha^2 - alpha + 1/2], or a smaller time_step",
-                scheme.parameters()
+                "{} lie outside the unconditionally stable window: {}, or a smaller time_step",
+                scheme.parameters(),
+                crate::time::WINDOW_ADVICE
             );
         }
         let contact = if self.caches.detector.is_none() {

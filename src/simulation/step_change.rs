@@ -112,10 +112,11 @@ where
     }
 
     /// Moves every obstacle by `velocities` (its linear and angular velocities, as in the
-    /// state) times `lag` (s) (a negative lag moves it back). A cut step's halves take the bodies re-expressed for half the step,
-    /// whose nodes that ride a moving obstacle have moved by `lag` times their velocity: the
-    /// obstacles move with them for the halves, and back when the cut step ends, so that they
-    /// are at their clock's (or their host's) pose after the step.
+    /// state) times `lag` (s) (a negative lag moves it back). A cut step's halves take the
+    /// bodies re-expressed for half the step, whose nodes that ride a moving obstacle have
+    /// moved by `lag` times their velocity: the obstacles move with them for the halves, and
+    /// back when the cut step ends, so that they are at their clock's (or their host's) pose
+    /// after the step.
     pub(super) fn shift_obstacles(&mut self, lag: f64, velocities: &ObstacleVelocities) {
         let (linear, angular) = velocities;
         for (t, v) in self.state.obstacle_translations.iter_mut().zip(linear) {

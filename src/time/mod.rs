@@ -44,6 +44,10 @@ impl Default for SpaceTimeScheme {
     }
 }
 
+/// What to choose instead of parameters outside the unconditionally stable window.
+pub const WINDOW_ADVICE: &str =
+    "use alpha >= sqrt(2)/2 ~ 0.7071 with beta in [1 - alpha, alpha^2 - alpha + 1/2]";
+
 impl SpaceTimeScheme {
     /// A scheme with validated parameters.
     pub fn new(alpha: f64, beta: Beta) -> Result<Self> {

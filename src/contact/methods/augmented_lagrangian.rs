@@ -73,21 +73,8 @@ impl Method for AugmentedLagrangian {
         let lambda = |vars: &OuterVariables, p: &PairStatus| {
             vars.multipliers.get(&p.key).copied().unwrap_or(0.0)
         };
-        // Signorini to the tolerance: no penetration, and no pressure across an open gap.
-        let penetrates = pairs.iter().any(|p| p.gap < -tolerance);
-        let pushes_open = pairs
-            .iter()
-            .any(|p| p.gap > tolerance && lambda(vars, p) - zeta(vars, p) * p.gap > 0.0);
-        // Uzawa stalls where the pressures cannot move the gaps: every violating pair at its
-        // largest penalty, its violation unmoved by the last update (< 1 %), and within ten
-        // times the gap tolerance (a deeper one goes on, to a cut step). Between two bodies both
-        // passes hold each other's nodes, and where the meshes do not match some of those
-        // constraints cannot all close: their multipliers then trade pressure (one pair's up,
-        // another's down) without end. The 3D stack of soft blocks at step 227 had three
-        // such pairs, violations of 1.4e-9 to 6.0e-9 m (pressures / zeta up to 9e-6 m) that
-        // spent the step's 50 iterations moving less than 0.1 % per update.
-        // The pair's violation of Signorini: its penetration, or the gap a pressure acts
-        // across (0: none).
+        // The pair's violation of Signorini to the tolerance: its penetration, or the gap a
+        // pressure acts across (0: none).
         let violation = |vars: &OuterVariables, p: &PairStatus| {
             let trial = lambda(vars, p) - zeta(vars, p) * p.gap;
             if p.gap < -tolerance {
@@ -98,8 +85,18 @@ impl Method for AugmentedLagrangian {
                 0.0
             }
         };
-        let stalled = settings.uzawa_penalty == UzawaPenalty::Growing
-            && (penetrates || pushes_open)
+        let violated = pairs.iter().any(|p| violation(vars, p) > 0.0);
+        let growing = settings.uzawa_penalty == UzawaPenalty::Growing;
+        // Uzawa stalls where the pressures cannot move the gaps: every violating pair at its
+        // largest penalty, its violation unmoved by the last update (< 1 %), and within ten
+        // times the gap tolerance (a deeper one goes on, to a cut step). Between two bodies both
+        // passes hold each other's nodes, and where the meshes do not match some of those
+        // constraints cannot all close: their multipliers then trade pressure (one pair's up,
+        // another's down) without end. The 3D stack of soft blocks at step 227 had three
+        // such pairs, violations of 1.4e-9 to 6.0e-9 m (pressures / zeta up to 9e-6 m) that
+        // spent the step's 50 iterations moving less than 0.1 % per update.
+        let stalled = growing
+            && violated
             && pairs.iter().all(|p| {
                 let violation = violation(vars, p);
                 violation == 0.0
@@ -110,7 +107,7 @@ impl Method for AugmentedLagrangian {
                             .is_some_and(|&before| violation > STALLED_ABOVE * before)
                         && violation <= STALLED_GAP_FACTOR * tolerance
             });
-        if (!penetrates && !pushes_open) || stalled {
+        if !violated || stalled {
             // A pair whose update would give zero is open: its multiplier goes, as do those
             // of pairs no longer detected, so that a pair found again starts from zero
             // instead of being pushed apart by a stale pressure.
@@ -122,7 +119,6 @@ impl Method for AugmentedLagrangian {
             vars.multipliers.retain(|key, _| closed.contains(key));
             return OuterUpdate::Converged;
         }
-        let growing = settings.uzawa_penalty == UzawaPenalty::Growing;
         for p in pairs {
             let trial = lambda(vars, p) - zeta(vars, p) * p.gap;
             let violation = violation(vars, p);
