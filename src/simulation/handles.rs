@@ -317,7 +317,7 @@ where
         (b, global - self.node_offsets[b])
     }
 
-    fn node_vector(values: &[f64], node: usize) -> SVector<f64, D> {
+    pub(super) fn node_vector(values: &[f64], node: usize) -> SVector<f64, D> {
         SVector::from_column_slice(&values[node * D..node * D + D])
     }
 

@@ -292,10 +292,12 @@ where
     /// symplectic form, written with M and K).
     pub(super) fn scheme_energy_at(&self, u: &[f64], v: &[f64], h: f64, history: &[f64]) -> f64 {
         let SpaceTimeScheme { alpha, beta } = self.model.settings.scheme;
+        let (wu, wv) = self.stiffness_fields(u, v);
+        let k = &self.matrices.stiffness;
         0.5 * assembly::symmetric_dot(&self.matrices.mass, v, v)
             + self.internal_energy(u, history)
-            + 0.5 * h * (alpha - beta) * self.stiffness_product(u, v)
-            + 0.25 * (alpha * alpha - 2.0 * alpha * beta) * h * h * self.stiffness_product(v, v)
+            + 0.5 * h * (alpha - beta) * assembly::symmetric_dot(k, &wu, &wv)
+            + 0.25 * (alpha * alpha - 2.0 * alpha * beta) * h * h * assembly::symmetric_dot(k, &wv, &wv)
     }
 
     /// The energy the end-of-step projection took out of the system (negative: put in),
