@@ -6,10 +6,10 @@ use crate::common;
 
 use common::{block, energy_error, vec_d};
 use softway::contact::{ContactMethod, ContactSettings, Obstacle, ObstacleShape};
-use softway::simulation::RunMonitor;
 use softway::dim::{Dim, SpatialDim};
 use softway::material::{Hypoelastic, RotationUpdate};
 use softway::prelude::*;
+use softway::simulation::RunMonitor;
 
 both_dims!(
     a_spinning_body_comes_back_unstressed,
@@ -516,7 +516,11 @@ where
         let r = a.step().unwrap();
         b.step().unwrap();
         let news = monitor.step(&a, &r).unwrap().unwrap_or_default();
-        assert!(!news.contains("energy created"), "{D}D step {}: {news}", r.step);
+        assert!(
+            !news.contains("energy created"),
+            "{D}D step {}: {news}",
+            r.step
+        );
         let e = a.energies();
         worst = worst.max((a.scheme_energy() - b.scheme_energy()).abs());
         swing = swing.max((a.scheme_energy() - e.kinetic - e.internal).abs());

@@ -42,7 +42,11 @@ where
         let nodes = self.nodes_of(index);
         let x = |n: usize| self.reference[n] + Self::node_vector(u, n);
         let count = nodes.len().max(1) as f64;
-        let c0 = nodes.clone().map(|n| self.reference[n]).sum::<SVector<f64, D>>() / count;
+        let c0 = nodes
+            .clone()
+            .map(|n| self.reference[n])
+            .sum::<SVector<f64, D>>()
+            / count;
         let c = nodes.clone().map(x).sum::<SVector<f64, D>>() / count;
         let mut a = SMatrix::<f64, D, D>::zeros();
         for n in nodes.clone() {

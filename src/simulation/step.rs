@@ -297,7 +297,11 @@ where
         0.5 * assembly::symmetric_dot(&self.matrices.mass, v, v)
             + self.internal_energy(u, history)
             + 0.5 * h * (alpha - beta) * assembly::symmetric_dot(k, &wu, &wv)
-            + 0.25 * (alpha * alpha - 2.0 * alpha * beta) * h * h * assembly::symmetric_dot(k, &wv, &wv)
+            + 0.25
+                * (alpha * alpha - 2.0 * alpha * beta)
+                * h
+                * h
+                * assembly::symmetric_dot(k, &wv, &wv)
     }
 
     /// The energy the end-of-step projection took out of the system (negative: put in),
