@@ -293,12 +293,15 @@ fn tilting_floor() {
         1e3 * slid_15,
         1e3 * slid_end
     );
-    // Measured 21.93 degrees; 8.4 % below tan(theta) at worst (the block creeps as it nears
-    // the cone: a lightly damped block walks near the cone, tests/friction.rs); 0.00 %; 1.3 mm,
-    // 11.4 mm.
+    // Measured 21.64 degrees; 0.5 % from tan(theta) at worst; 0.00 %; -0.10 mm, 2.36 mm.
+    // With the small-strain law the block crept (10.9 % below tan(theta), 1.41 mm by 15
+    // degrees, 11.7 mm by the end, onset at 22.8): it read its own turn as strain.
     assert!((onset - mu.atan().to_degrees()).abs() < 1.0, "{onset}");
-    assert!(holding < 0.12 && beyond < 0.01, "{holding} {beyond}");
-    assert!(slid_15 < 3e-3 && slid_end > 3.0 * slid_15);
+    assert!(holding < 0.02 && beyond < 0.01, "{holding} {beyond}");
+    assert!(
+        slid_15.abs() < 5e-4 && slid_end > 1e-3,
+        "{slid_15} {slid_end}"
+    );
 }
 
 /// How far the block's centre node has slid down the plate turned by `theta` [m].

@@ -9,8 +9,10 @@
 //! `checkpoints.rs`: checkpoints, `resume`, interrupts and atomic outputs;
 //! `reliability.rs`: issue 14 (runs that end, limits, overlaps, messages, monitors);
 //! `messages.rs`: issue 14's messages (no type names, advice that fits the case, the memory
-//! estimate).
+//! estimate); `bundled_defaults.rs`: every bundled scene at its defaults, to the end, with the
+//! warnings the book lists.
 
+mod bundled_defaults;
 mod checkpoints;
 mod invalid_input;
 mod messages;
