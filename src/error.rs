@@ -90,7 +90,7 @@ pub enum Error {
     /// Newton (with the contact iterations) did not converge, even after cutting the step.
     #[error(
         "no convergence at step {step} (t = {time:.6e} s) after {iterations} iterations: \
-         relative residual {residual:.3e} (tolerance {tolerance:.1e}); {cause}"
+         relative residual {residual:.3e} (tolerance {tolerance:.1e}); {site}; {cause}"
     )]
     NotConverged {
         /// Step number (1-based).
@@ -103,6 +103,9 @@ pub enum Error {
         residual: f64,
         /// The tolerance asked for.
         tolerance: f64,
+        /// Where it is stuck: the node with the largest residual and the contact there, or
+        /// the points a cycling contact set kept switching; and the step's contact pairs.
+        site: String,
         /// Why it stopped and what to try: iterations spent, a contact set that cycles, or
         /// contact passes that did not settle.
         cause: String,

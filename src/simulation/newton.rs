@@ -15,9 +15,11 @@ use super::line_search::{free_dot, LineSearch, Verdict};
 use super::observe::{IterationInfo, Recorder};
 use super::{end_positions, Simulation};
 use crate::assembly::{self, KernelFields};
-use crate::contact::methods::{self, Method, OuterUpdate, OuterVariables, PairStatus};
-use crate::contact::{ContactKey, ContactPair, ContactSurface, FrictionLaw, Master, Obstacle};
-use crate::dim::{Dim, SpatialDim};
+use crate::contact::methods::{self, Method, OuterUpdate, OuterVariables, PairOutcome, PairStatus};
+use crate::contact::{
+    ContactKey, ContactPair, ContactSurface, FrictionLaw, Master, MasterId, Obstacle,
+};
+use crate::dim::{Dim, Kinematics, SpatialDim};
 use crate::error::{Error, Result};
 use crate::friction::{threshold_change, ThresholdSample};
 
@@ -302,6 +304,103 @@ where
         }
     }
 
+    /// Where a step that does not converge is stuck, for its message: the free unknown with
+    /// the largest residual (its node, body and position at the step's start, `u0`), whether
+    /// that node is a contact point (its master, gap and normal force), and how many pairs
+    /// the step has.
+    fn residual_site(&self, residual: &[f64], pairs: &[PairOutcome<D>], u0: &[f64]) -> String {
+        let worst = (0..residual.len())
+            .filter(|&i| self.prescribed[i].is_none() && residual[i].is_finite())
+            .max_by(|&a, &b| residual[a].abs().total_cmp(&residual[b].abs()));
+        let Some(i) = worst else {
+            return "no free unknown".into();
+        };
+        let node = i / D;
+        let x = self.reference[node] + Self::node_vector(u0, node);
+        let position: Vec<String> = x.iter().map(|c| format!("{c:.4e}")).collect();
+        // Plane kinematics carry forces per metre of depth.
+        let unit = match self.model.settings.kinematics {
+            Kinematics::PlaneStrain | Kinematics::PlaneStress => "N/m",
+            Kinematics::Axisymmetric | Kinematics::Solid => "N",
+        };
+        let mut site = format!(
+            "the largest residual, {:.3e} {unit}, is at {} (x = ({}) m)",
+            residual[i].abs(),
+            self.node_name(node),
+            position.join(", ")
+        );
+        let touching: Vec<String> = pairs
+            .iter()
+            .filter(|p| p.key.0 == node)
+            .map(|p| {
+                format!(
+                    "{} (gap {:.3e} m, normal force {:.3e} {unit})",
+                    self.master_name(p.key.1),
+                    p.gap,
+                    p.normal_force
+                )
+            })
+            .collect();
+        if pairs.is_empty() {
+            site.push_str(", no contact in the step");
+            return site;
+        }
+        if touching.is_empty() {
+            site.push_str(", not a contact point");
+        } else {
+            site.push_str(&format!(", a contact point on {}", touching.join(" and ")));
+        }
+        let pressing = pairs.iter().filter(|p| p.normal_force != 0.0).count();
+        site.push_str(&format!(
+            "; {} contact pair(s) in the step, {pressing} with a normal force",
+            pairs.len()
+        ));
+        site
+    }
+
+    /// The points implicit projection's cycling contact set kept switching, for its message.
+    fn cycle_site(&self, vars: &OuterVariables) -> String {
+        const LISTED: usize = 4;
+        let switching: Vec<String> = vars
+            .releases
+            .keys()
+            .take(LISTED)
+            .map(|&(node, master)| {
+                format!("{} on {}", self.node_name(node), self.master_name(master))
+            })
+            .collect();
+        let more = vars.releases.len().saturating_sub(LISTED);
+        format!(
+            "{} point(s) active when the set came back, {} released in the step{}{}",
+            vars.active.len(),
+            vars.releases.len(),
+            if switching.is_empty() {
+                String::new()
+            } else {
+                format!(": {}", switching.join(", "))
+            },
+            if more > 0 {
+                format!(" and {more} more")
+            } else {
+                String::new()
+            }
+        )
+    }
+
+    /// `node N of body `NAME`` (N counted within the body, from 0).
+    fn node_name(&self, global: usize) -> String {
+        let (b, local) = self.owner_of(global);
+        format!("node {local} of body `{}`", self.model.bodies[b].name)
+    }
+
+    /// `obstacle `NAME`` or `body `NAME``.
+    fn master_name(&self, master: MasterId) -> String {
+        match master {
+            MasterId::Obstacle(k) => format!("obstacle `{}`", self.model.obstacles[k].name),
+            MasterId::Body(b) => format!("body `{}`", self.model.bodies[b].name),
+        }
+    }
+
     /// Newton with the contact method's outer loop: the end velocities of the step.
     pub(super) fn solve_step(
         &mut self,
@@ -319,14 +418,16 @@ where
         let tolerance = self.model.settings.tolerance;
         let max_iterations = self.model.settings.max_iterations;
         let max_passes = self.model.contact.max_passes;
-        let not_converged = |iterations: usize, residual: f64, why: Stall| Error::NotConverged {
-            step,
-            time: t0,
-            iterations,
-            residual,
-            tolerance,
-            cause: why.cause(max_iterations, max_passes),
-        };
+        let not_converged =
+            |iterations: usize, residual: f64, site: String, why: Stall| Error::NotConverged {
+                step,
+                time: t0,
+                iterations,
+                residual,
+                tolerance,
+                site,
+                cause: why.cause(max_iterations, max_passes),
+            };
 
         let mut friction_normals: BTreeMap<ContactKey, f64> = self
             .state
@@ -611,7 +712,8 @@ where
                     OuterUpdate::Converged => true,
                     OuterUpdate::Again => false,
                     OuterUpdate::Cycle => {
-                        return Err(not_converged(iterations, rel, Stall::ContactCycle))
+                        let site = self.cycle_site(&vars);
+                        return Err(not_converged(iterations, rel, site, Stall::ContactCycle));
                     }
                 };
                 if done
@@ -657,12 +759,14 @@ where
                 last_increment.clear();
                 line = None;
                 if passes > self.model.contact.max_passes {
-                    return Err(not_converged(iterations, rel, Stall::ContactPasses));
+                    let site = self.residual_site(&residual, &terms.pairs, u0);
+                    return Err(not_converged(iterations, rel, site, Stall::ContactPasses));
                 }
                 continue;
             }
             if iterations >= self.model.settings.max_iterations {
-                return Err(not_converged(iterations, rel, Stall::Iterations));
+                let site = self.residual_site(&residual, &terms.pairs, u0);
+                return Err(not_converged(iterations, rel, site, Stall::Iterations));
             }
             let mut increment: Vec<f64> = residual
                 .iter()

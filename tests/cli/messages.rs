@@ -127,6 +127,51 @@ fn max_iterations_advice_says_when_it_helps() {
         ),
         "{err}"
     );
+    // Where: the block is still above its floor.
+    assert!(first.contains(" of body `block` (x = ("), "{err}");
+    assert!(first.contains(" m), no contact in the step; "), "{err}");
+}
+
+/// A step that does not converge names where it is stuck (issue 10: "a clear error naming the
+/// step, time, residual and the contacts involved"): the node with the largest residual, its
+/// body and position, the contact there with its gap and normal force, and the step's pairs.
+/// The bundled ring drop with Coulomb friction and Newton held to 3 iterations stops at its
+/// landing.
+#[test]
+fn no_convergence_names_the_node_and_its_contact() {
+    let dir = tempdir();
+    let file = repo().join("fixtures/scenes/ring_drop.toml");
+    let o = run_in(
+        dir.path(),
+        &[
+            "run",
+            file.to_str().unwrap(),
+            "--quiet",
+            "--out",
+            "out",
+            "--set",
+            "simulation.max_iterations=3",
+            "--set",
+            "contact.friction={law=\"coulomb\",coefficient=0.3}",
+        ],
+    );
+    assert_eq!(o.status.code(), Some(3), "{}", stderr(&o));
+    let err = stderr(&o);
+    let first = err.lines().next().unwrap();
+    assert!(
+        first.starts_with("error: no convergence at step 200 "),
+        "{err}"
+    );
+    for part in [
+        "the largest residual, ",
+        " N/m, is at node ",
+        " of body `ring` (x = (",
+        "a contact point on obstacle `base` (gap -",
+        " contact pair(s) in the step, ",
+        "max_iterations = 3 spent",
+    ] {
+        assert!(first.contains(part), "{part:?} in {err}");
+    }
 }
 
 /// The physical memory `check` compares with (bytes), as `limits::memory_limit` reads it.
