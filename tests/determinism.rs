@@ -35,8 +35,6 @@ where
     for p in &mut lower_mesh.nodes {
         p[D - 1] += 0.001;
     }
-    let mut up = [0.0; 3];
-    up[D - 1] = 1.0;
     let mut g = [0.0; 3];
     g[D - 1] = -9.81;
     Simulation::<D>::builder()
@@ -44,13 +42,7 @@ where
         .gravity(vec_d(g))
         .body(Body::new("lower", lower_mesh, law).with_velocity(vec_d([0.2, 0.0, 0.0])))
         .body(Body::new("upper", upper, law).with_velocity(vec_d([-0.3, 0.0, 0.0])))
-        .obstacle(Obstacle::new(
-            "floor",
-            ObstacleShape::Halfspace {
-                point: vec_d([0.0; 3]),
-                normal: vec_d(up),
-            },
-        ))
+        .obstacle(common::floor::<D>())
         .contact(ContactSettings {
             method,
             penalty: 1e9,

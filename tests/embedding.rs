@@ -31,21 +31,6 @@ where
     Body::new(name, mesh, rubber()).with_damping(0.0, 1e-3)
 }
 
-fn floor<const D: usize>() -> Obstacle<D>
-where
-    Dim<D>: SpatialDim<D>,
-{
-    let mut normal = SVector::zeros();
-    normal[D - 1] = 1.0;
-    Obstacle::new(
-        "floor",
-        ObstacleShape::Halfspace {
-            point: SVector::zeros(),
-            normal,
-        },
-    )
-}
-
 fn gravity<const D: usize>() -> SVector<f64, D> {
     let mut g = SVector::zeros();
     g[D - 1] = -G;
@@ -63,7 +48,7 @@ where
         .time_step(1.0 / 240.0)
         .gravity(gravity())
         .body(cube("a", 0.0, 0.002))
-        .obstacle(floor())
+        .obstacle(common::floor())
         .contact(ContactSettings {
             method: ContactMethod::SoftWay,
             penalty: 1e9,

@@ -4,8 +4,7 @@
 
 use crate::common;
 
-use common::{block, energy_error, vec_d};
-use softway::contact::{ContactMethod, ContactSettings, Obstacle, ObstacleShape};
+use common::{block, energy_error};
 use softway::dim::{Dim, SpatialDim};
 use softway::material::{Hypoelastic, RotationUpdate};
 use softway::prelude::*;
@@ -460,39 +459,6 @@ fn about_z<const D: usize>(omega: f64) -> Vec<f64> {
     }
 }
 
-/// A block resting on a floor under gravity from rest (implicit projection, the default
-/// scheme), of the hypoelastic or the linear-elastic law.
-fn settling_block<const D: usize>(material: Material) -> Simulation<D>
-where
-    Dim<D>: SpatialDim<D>,
-{
-    let mut g = [0.0; 3];
-    g[D - 1] = -9.81;
-    let mut up = [0.0; 3];
-    up[D - 1] = 1.0;
-    Simulation::<D>::builder()
-        .time_step(1e-3)
-        .gravity(vec_d(g))
-        .body(Body::new(
-            "block",
-            block([0.2, 0.1, 0.2], [4, 2, 4], false),
-            material,
-        ))
-        .obstacle(Obstacle::new(
-            "floor",
-            ObstacleShape::Halfspace {
-                point: vec_d([0.0; 3]),
-                normal: vec_d(up),
-            },
-        ))
-        .contact(ContactSettings {
-            method: ContactMethod::ImplicitProjection,
-            ..ContactSettings::default()
-        })
-        .build()
-        .unwrap()
-}
-
 /// The energy the scheme conserves, Q (`Simulation::scheme_energy`), takes the reference
 /// stiffness of a hypoelastic body's corotated motion: while a block settles on a floor from
 /// rest (small strain, no turn) its Q is the linear-elastic block's, and the run monitor,
@@ -507,7 +473,10 @@ where
         Hypoelastic::new(1e7, 0.3, 1000.0, RotationUpdate::HughesWinget).unwrap(),
     );
     let linear = Material::LinearElastic(LinearElastic::new(1e7, 0.3, 1000.0).unwrap());
-    let (mut a, mut b) = (settling_block::<D>(hypo), settling_block::<D>(linear));
+    let (mut a, mut b) = (
+        common::resting_block::<D>(hypo),
+        common::resting_block::<D>(linear),
+    );
     let mut monitor = RunMonitor::new(&a);
     // Absolute (J), then against the largest input: the block bounces on its contact
     // springs, and the work of gravity swings between zero and that.
@@ -546,7 +515,7 @@ where
     let material = Material::Hypoelastic(
         Hypoelastic::new(1e7, 0.3, 1000.0, RotationUpdate::HughesWinget).unwrap(),
     );
-    let mut sim = settling_block::<D>(material);
+    let mut sim = common::resting_block::<D>(material);
     let (theta, omega) = (1.0_f64, 3.0);
     let (c, s) = (theta.cos(), theta.sin());
     let reference = sim.reference_positions().to_vec();

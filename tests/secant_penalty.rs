@@ -5,9 +5,7 @@
 use crate::common;
 
 use common::{block, vec_d};
-use softway::contact::{
-    ContactMethod, ContactSettings, GapDisplacement, Obstacle, ObstacleShape, PenaltyForce,
-};
+use softway::contact::{ContactMethod, ContactSettings, GapDisplacement, PenaltyForce};
 use softway::dim::{Dim, SpatialDim};
 use softway::prelude::*;
 
@@ -18,8 +16,6 @@ fn bounce<const D: usize>(force: PenaltyForce) -> (f64, f64, f64)
 where
     Dim<D>: SpatialDim<D>,
 {
-    let mut up = [0.0; 3];
-    up[D - 1] = 1.0;
     let mut down = [0.0; 3];
     down[D - 1] = -1.0;
     let mut mesh: Mesh<D> = block([0.1, 0.1, 0.1], [4, 4, 4], false);
@@ -37,13 +33,7 @@ where
     let mut sim = Simulation::<D>::builder()
         .time_step(1e-3)
         .body(body)
-        .obstacle(Obstacle::new(
-            "floor",
-            ObstacleShape::Halfspace {
-                point: vec_d([0.0; 3]),
-                normal: vec_d(up),
-            },
-        ))
+        .obstacle(common::floor::<D>())
         .contact(ContactSettings {
             method: ContactMethod::SoftWay,
             penalty: 1e9,

@@ -17,8 +17,6 @@ fn stack<const D: usize>(method: ContactMethod, gaps: GapDisplacement) -> (f64, 
 where
     Dim<D>: SpatialDim<D>,
 {
-    let mut up = [0.0; 3];
-    up[D - 1] = 1.0;
     let mut gravity = [0.0; 3];
     gravity[D - 1] = -9.81;
     let mut builder = Simulation::<D>::builder()
@@ -39,13 +37,7 @@ where
         ));
     }
     let mut sim = builder
-        .obstacle(Obstacle::new(
-            "floor",
-            ObstacleShape::Halfspace {
-                point: vec_d([0.0; 3]),
-                normal: vec_d(up),
-            },
-        ))
+        .obstacle(common::floor::<D>())
         .contact(ContactSettings {
             method,
             penalty: 1e9,

@@ -78,6 +78,49 @@ where
         / sim.energy_reference()
 }
 
+/// A rigid floor named "floor": the half-space below the plane through the origin normal to
+/// the last axis.
+pub fn floor<const D: usize>() -> softway::contact::Obstacle<D> {
+    let mut normal = SVector::zeros();
+    normal[D - 1] = 1.0;
+    softway::contact::Obstacle::new(
+        "floor",
+        softway::contact::ObstacleShape::Halfspace {
+            point: SVector::zeros(),
+            normal,
+        },
+    )
+}
+
+/// A 0.2 x 0.1 (x 0.2) m block of `material` resting on a floor under gravity from rest (4 x 2
+/// (x 4) cells, h = 1 ms), with implicit projection (the default method).
+pub fn resting_block<const D: usize>(
+    material: softway::material::Material,
+) -> softway::Simulation<D>
+where
+    softway::dim::Dim<D>: softway::dim::SpatialDim<D>,
+{
+    use softway::contact::{ContactMethod, ContactSettings};
+    use softway::simulation::Body;
+    let mut g = [0.0; 3];
+    g[D - 1] = -9.81;
+    softway::Simulation::<D>::builder()
+        .time_step(1e-3)
+        .gravity(vec_d(g))
+        .body(Body::new(
+            "block",
+            block([0.2, 0.1, 0.2], [4, 2, 4], false),
+            material,
+        ))
+        .obstacle(floor::<D>())
+        .contact(ContactSettings {
+            method: ContactMethod::ImplicitProjection,
+            ..ContactSettings::default()
+        })
+        .build()
+        .unwrap()
+}
+
 /// The least-squares slope of `y` against `x` (an acceleration from sampled velocities).
 pub fn least_squares_slope(x: &[f64], y: &[f64]) -> f64 {
     let n = x.len() as f64;
