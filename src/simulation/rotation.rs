@@ -1,15 +1,17 @@
 //! How far a body has turned: the rotation of the best fit of its current configuration to
 //! its reference one. Small-strain laws see a finite rotation as strain; the run warns when a
-//! body of such a law turns past a few degrees.
+//! body of such a law turns past a few degrees. The same fit takes the motion of a body of an
+//! updated-Lagrangian law back to the reference for the stiffness terms of the scheme's
+//! conserved energy ([`Simulation::stiffness_fields`]).
 
 use nalgebra::{SMatrix, SVector};
-
-/// A best fit: the rotation, the reference centroid and the current one.
-type BestFit<const D: usize> = (SMatrix<f64, D, D>, SVector<f64, D>, SVector<f64, D>);
 
 use super::{BodyId, Simulation};
 use crate::dim::{Dim, SpatialDim};
 use crate::error::Result;
+
+/// A best fit: the rotation, the reference centroid and the current one.
+type BestFit<const D: usize> = (SMatrix<f64, D, D>, SVector<f64, D>, SVector<f64, D>);
 
 /// The rotation past which a body of a small-strain law is reported (rad) (5 degrees: the
 /// strain a rigid rotation theta fakes is about theta^2 / 2 = 0.4 %).
