@@ -1,6 +1,6 @@
 //! The paper's example 1: an elastic ring (an annulus, outer radius 1 m, inner 0.8 m, E = 5e7
 //! Pa, rho = 1000 kg/m^3, plane strain) falls at 1 m/s under gravity on a rigid base; the soft
-//! way resolves the contact (zeta = 1e10 Pa/m, h = 1 ms). The scene is the bundled
+//! way resolves the contact (zeta = 3e9 Pa/m, h = 1 ms). The scene is the bundled
 //! `fixtures/scenes/ring_drop.toml`, loaded with `softway::io::scene::load` as the command line
 //! loads it (the same `--set KEY=VALUE` overrides), and run only through its first bounce by
 //! default (0.4 s of the scene's 0.6 s).

@@ -363,7 +363,7 @@ where
     assert!(energy_error(&sim) < 1e-3, "{}", energy_error(&sim));
 }
 
-/// The bundled ring drop (soft way, zeta = 1e10 Pa/m) through its landing (0.4 s) with
+/// The bundled ring drop (soft way, zeta = 3e9 Pa/m) through its landing (0.4 s) with
 /// `friction`: steps in contact, Newton iterations per contact step, the most in a step, the
 /// dissipated energy and the energy-account error relative to the energy reference.
 #[cfg(feature = "formats")]
@@ -398,7 +398,8 @@ fn ring_drop(method: &str, friction: &str) -> (usize, f64, usize, f64, f64) {
 
 /// The bundled ring drop with Coulomb 0.3 runs through its landing with each method that takes
 /// friction, dissipates, and friction keeps the energy account: its error is within 1e-3 of the
-/// frictionless run's (the method's own drift with this penalty and step) and below 2 %.
+/// frictionless run's (the method's own drift with this penalty and step) and below the
+/// issue's 1 % (the augmented Lagrangian: 2.5 %, not met).
 // The bundled scene is read through the scene format.
 #[cfg(feature = "formats")]
 fn ring_drop_with_coulomb_friction(method: &str) {
@@ -421,13 +422,14 @@ fn ring_drop_with_coulomb_friction(method: &str) {
             "no friction dissipation: {dissipated} J against {dissipated_0} J frictionless"
         );
     }
-    // The account's error is each method's own (frictionless: soft way 1.38e-2, augmented
-    // Lagrangian 2.17e-2, implicit projection 4.55e-2 of the reference, measured); friction
-    // adds at most 2e-4 under the penalty methods and 7.9e-3 under implicit projection, whose
-    // end-of-step correction is not booked.
+    // The account's error is each method's own (frictionless: soft way 1.72e-3, augmented
+    // Lagrangian 2.17e-2, implicit projection 3.34e-3 of the reference, measured 2026-11-28
+    // at zeta = 3e9 Pa/m; the soft way's was 1.38e-2 at 1e10); friction adds at most 1e-4.
+    // The augmented Lagrangian's multipliers close the gaps on the stored configuration, whose
+    // offset puts energy in at each bounce: it misses the 1 %.
     let (added, bound) = match method {
-        "implicit_projection" => (1e-2, 6e-2),
-        _ => (1e-3, 2.5e-2),
+        "augmented_lagrangian" => (1e-3, 2.5e-2),
+        _ => (1e-3, 1e-2),
     };
     assert!(
         (error - error_0).abs() < added,

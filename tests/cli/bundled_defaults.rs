@@ -20,9 +20,9 @@ const EXPECTED: &[(&str, &[&str])] = &[
     // A viscoplastic body's dissipation booked at the scheme's end velocities, which swing for
     // a few steps after the start from rest: 25 % at step 2, where the input is still tiny.
     ("octagon_compression", &["the run created energy"]),
-    // The paper's configuration gaps put energy in at each impact (the soft way): 5.7 % by its
-    // last bounces, at step 582 of 600.
-    ("ring_drop", &["the run created energy"]),
+    // At zeta = 1e10 Pa/m the paper's configuration gaps put energy in at each bounce (5.7 %
+    // at step 582 of 600); at 3e9 none.
+    ("ring_drop", &[]),
     ("rolling_ring", &[]),
     ("thick_cylinder", &[]),
     ("tilting_floor", &[]),
