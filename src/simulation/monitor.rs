@@ -163,6 +163,10 @@ pub struct RunMonitor {
     /// Whether a body flows (Norton-Hoff): its dissipation is booked at the scheme's
     /// velocities, which overshoot for a few steps after a start from rest.
     viscous: bool,
+    /// Whether the penalty methods measure gaps on the stored configuration (the paper's
+    /// `gap_displacement`), whose offset at impacts is what creates energy on a bouncing body.
+    #[serde(default)]
+    configuration_gaps: bool,
     /// The stability warning of a scheme outside the unconditionally stable window, whose
     /// conserved quantity Q is no norm (g < 0): modes stiffer than its limit grow while Q
     /// stays, so the mechanical energy E is watched too, from `e0_mechanical`.
@@ -205,6 +209,8 @@ impl RunMonitor {
                 .bodies
                 .iter()
                 .any(|b| matches!(b.material, crate::material::Material::NortonHoff(_))),
+            configuration_gaps: sim.model.contact.gap_displacement
+                == crate::contact::GapDisplacement::Configuration,
             // A tenth of the mean boundary facet (the margin is a quarter of it).
             penetration_tolerance: detector.map_or(f64::INFINITY, |d| 0.4 * d.options().margin),
             created: None,
@@ -443,6 +449,14 @@ impl RunMonitor {
             Some(ContactMethod::ExplicitProjection) => {
                 "explicit_projection's end-of-step correction puts energy in: use \
                  implicit_projection, or a smaller time_step"
+            }
+            Some(ContactMethod::SoftWay | ContactMethod::AugmentedLagrangian)
+                if self.configuration_gaps =>
+            {
+                "a penalty too stiff for the time step, or the stored configuration's offset \
+                 from the gaps at each impact: use contact.gap_displacement = \"trapezoid\" \
+                 (gaps on the displacement the energy is booked on), a smaller time_step or \
+                 penalty, or implicit_projection"
             }
             Some(ContactMethod::SoftWay | ContactMethod::AugmentedLagrangian) => {
                 "the penalty is too stiff for the time step: use a smaller time_step or a \

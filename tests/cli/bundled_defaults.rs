@@ -54,25 +54,12 @@ fn every_bundled_scene_runs_with_the_warnings_the_book_lists() {
     for (name, expected) in EXPECTED {
         let out = dir.path().join(name);
         let file = scenes.join(format!("{name}.toml"));
-        let o = run_in(
-            dir.path(),
-            &[
-                "run",
-                file.to_str().unwrap(),
-                "--out",
-                out.to_str().unwrap(),
-            ],
-        );
+        let o = run_scene(dir.path(), &file, &out, &[]);
         assert_eq!(o.status.code(), Some(0), "{name}: {}", stderr(&o));
         let summary: Value =
             serde_json::from_str(&fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
         assert_eq!(summary["status"], "completed", "{name}");
-        let warnings: Vec<String> = summary["warnings"]
-            .as_array()
-            .unwrap()
-            .iter()
-            .map(|w| w.as_str().unwrap().to_string())
-            .collect();
+        let warnings = warnings(&out);
         let matches = warnings.len() == expected.len()
             && warnings
                 .iter()

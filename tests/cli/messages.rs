@@ -141,14 +141,12 @@ fn max_iterations_advice_says_when_it_helps() {
 fn no_convergence_names_the_node_and_its_contact() {
     let dir = tempdir();
     let file = repo().join("fixtures/scenes/ring_drop.toml");
-    let o = run_in(
+    let o = run_scene(
         dir.path(),
+        &file,
+        &dir.path().join("out"),
         &[
-            "run",
-            file.to_str().unwrap(),
             "--quiet",
-            "--out",
-            "out",
             "--set",
             "simulation.max_iterations=3",
             "--set",
@@ -314,4 +312,39 @@ fn implicit_projection_on_a_massless_flow_is_refused_up_front() {
             file.display()
         )
     );
+}
+
+/// The energy warning of a penalty method on the paper's configuration gaps names the option
+/// that removes its cause: the bundled ring drop under the augmented Lagrangian creates 6.9 %
+/// by its last bounces (its multipliers close the gaps on the stored configuration, whose
+/// offset puts energy in at each impact, whatever the penalty), and with the gaps on the
+/// trapezoid displacement, as the warning says, the same run ends without a warning.
+#[test]
+fn the_energy_warning_on_configuration_gaps_names_the_trapezoid_gaps() {
+    let dir = tempdir();
+    let file = repo().join("fixtures/scenes/ring_drop.toml");
+    let run = |name: &str, sets: &[&str]| {
+        let out = dir.path().join(name);
+        let mut args = vec![
+            "--quiet",
+            "--set",
+            "contact.method=\"augmented_lagrangian\"",
+        ];
+        args.extend_from_slice(sets);
+        let o = run_scene(dir.path(), &file, &out, &args);
+        assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+        warnings(&out)
+    };
+    let w = run("configuration", &[]);
+    assert!(
+        w.len() == 1
+            && w[0].starts_with("the run created energy: ")
+            && w[0].contains("use contact.gap_displacement = \"trapezoid\""),
+        "{w:?}"
+    );
+    let w = run(
+        "trapezoid",
+        &["--set", "contact.gap_displacement=\"trapezoid\""],
+    );
+    assert!(w.is_empty(), "{w:?}");
 }

@@ -7,8 +7,6 @@ use std::path::{Path, PathBuf};
 use std::process::{Output, Stdio};
 use std::time::{Duration, Instant};
 
-use serde_json::Value;
-
 use super::support::*;
 
 /// A block above a polyline floor (drawn right to left: solid below).
@@ -94,37 +92,6 @@ fn run_bounded(dir: &Path, args: &[&str], limit: Duration) -> Output {
         std::thread::sleep(Duration::from_millis(20));
     }
     child.wait_with_output().unwrap()
-}
-
-/// `softway run FILE --out OUT` with `sets` (further arguments, `--set` pairs), in `dir`.
-fn run_scene(dir: &Path, file: &Path, out: &Path, sets: &[&str]) -> Output {
-    let mut args = vec![
-        "run",
-        file.to_str().unwrap(),
-        "--out",
-        out.to_str().unwrap(),
-    ];
-    args.extend_from_slice(sets);
-    run_in(dir, &args)
-}
-
-fn error_line(o: &Output) -> String {
-    stderr(o)
-        .lines()
-        .find(|l| l.starts_with("error"))
-        .unwrap_or_default()
-        .to_string()
-}
-
-fn warnings(out: &Path) -> Vec<String> {
-    let s: Value = serde_json::from_str(&fs::read_to_string(out.join("summary.json")).unwrap())
-        .expect("summary.json");
-    s["warnings"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|w| w.as_str().unwrap().to_string())
-        .collect()
 }
 
 // ---------------------------------------------------------------------------------------------

@@ -4,6 +4,8 @@ use std::fs;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
+use serde_json::Value;
+
 pub(crate) fn softway() -> Command {
     Command::new(env!("CARGO_BIN_EXE_softway"))
 }
@@ -153,4 +155,37 @@ pub(crate) fn assert_bad_scenes(cases: &[(&str, &str, &str, &str, &str)]) {
             },
         );
     }
+}
+
+/// `softway run FILE --out OUT` with `sets` (further arguments, `--set` pairs), in `dir`.
+pub(crate) fn run_scene(dir: &Path, file: &Path, out: &Path, sets: &[&str]) -> Output {
+    let mut args = vec![
+        "run",
+        file.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ];
+    args.extend_from_slice(sets);
+    run_in(dir, &args)
+}
+
+/// The first line of stderr that starts with `error`.
+pub(crate) fn error_line(o: &Output) -> String {
+    stderr(o)
+        .lines()
+        .find(|l| l.starts_with("error"))
+        .unwrap_or_default()
+        .to_string()
+}
+
+/// The warnings of `OUT/summary.json`.
+pub(crate) fn warnings(out: &Path) -> Vec<String> {
+    let s: Value = serde_json::from_str(&fs::read_to_string(out.join("summary.json")).unwrap())
+        .expect("summary.json");
+    s["warnings"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|w| w.as_str().unwrap().to_string())
+        .collect()
 }
