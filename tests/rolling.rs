@@ -230,6 +230,7 @@ macro_rules! per_method {
 // disk under the soft way in 2D and the ring under implicit projection (2D) and the soft way
 // (3D) run in the suite.
 per_method!(
+    #[cfg_attr(not(feature = "parallel"), ignore = "slow without threads (45 s): runs with the default features; nothing it reaches depends on a feature but the threaded assembly, which determinism.rs checks")]
     disk_d2_soft_way: 2, Disk, ContactMethod::SoftWay;
     #[ignore = "slow (20-70 s); the disk under the soft way and the ring under implicit projection run"]
     disk_d2_implicit_projection: 2, Disk, ContactMethod::ImplicitProjection;

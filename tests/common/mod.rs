@@ -13,9 +13,9 @@ use softway::mesh::Mesh;
 /// Runs a generic test function in 2D and 3D: `both_dims!(f, g)` makes `d2::f`, `d3::f`, ...
 #[macro_export]
 macro_rules! both_dims {
-    ($($name:ident),* $(,)?) => {
-        mod d2 { $( #[test] fn $name() { super::$name::<2>(); } )* }
-        mod d3 { $( #[test] fn $name() { super::$name::<3>(); } )* }
+    ($($(#[$attr:meta])* $name:ident),* $(,)?) => {
+        mod d2 { $( $(#[$attr])* #[test] fn $name() { super::$name::<2>(); } )* }
+        mod d3 { $( $(#[$attr])* #[test] fn $name() { super::$name::<3>(); } )* }
     };
 }
 
