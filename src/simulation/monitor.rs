@@ -160,9 +160,6 @@ pub struct RunMonitor {
     cycled_steps: usize,
     first_cycle: Option<(usize, f64)>,
     most_held: usize,
-    /// Whether a body flows (Norton-Hoff): its dissipation is booked at the scheme's
-    /// velocities, which overshoot for a few steps after a start from rest.
-    viscous: bool,
     /// Whether the penalty methods measure gaps on the stored configuration (the paper's
     /// `gap_displacement`), whose offset at impacts is what creates energy on a bouncing body.
     #[serde(default)]
@@ -204,11 +201,6 @@ impl RunMonitor {
             created_mechanical: false,
             outside_window: sim.model.settings.scheme.stability_warning(),
             method: detector.map(|_| sim.model.contact.method),
-            viscous: sim
-                .model
-                .bodies
-                .iter()
-                .any(|b| matches!(b.material, crate::material::Material::NortonHoff(_))),
             configuration_gaps: sim.model.contact.gap_displacement
                 == crate::contact::GapDisplacement::Configuration,
             // A tenth of the mean boundary facet (the margin is a quarter of it).
@@ -437,13 +429,6 @@ impl RunMonitor {
                  and beta = 1/4, are inside), or a smaller time_step",
                 crate::time::WINDOW_ADVICE
             );
-        }
-        if self.viscous {
-            return "a viscoplastic (norton_hoff) body's dissipation is booked at the scheme's end \
-                    velocities, which oscillate for a few steps after a start from rest (the \
-                    flow's own velocity is the one at t_alpha): energy created early that the \
-                    energy_drift at the end does not show is that start-up, not the flow"
-                .into();
         }
         let advice = match self.method {
             Some(ContactMethod::ExplicitProjection) => {

@@ -17,9 +17,9 @@ const EXPECTED: &[(&str, &[&str])] = &[
     ("folding_strip", &[]),
     ("gmsh_plate", &[]),
     ("gripper", &[]),
-    // A viscoplastic body's dissipation booked at the scheme's end velocities, which swing for
-    // a few steps after the start from rest: 25 % at step 2, where the input is still tiny.
-    ("octagon_compression", &["the run created energy"]),
+    // On the paper's configuration gaps the stored configuration's offset created 25 % at step
+    // 2; on trapezoid gaps none.
+    ("octagon_compression", &[]),
     // At zeta = 1e10 Pa/m the paper's configuration gaps put energy in at each bounce (5.7 %
     // at step 582 of 600); at 3e9 none.
     ("ring_drop", &[]),
