@@ -363,15 +363,15 @@ where
     assert!(energy_error(&sim) < 1e-3, "{}", energy_error(&sim));
 }
 
-/// The bundled ring drop (soft way, zeta = 3e9 Pa/m) through its landing (0.4 s) with
-/// `friction`: steps in contact, Newton iterations per contact step, the most in a step, the
-/// dissipated energy and the energy-account error relative to the energy reference.
+/// The bundled ring drop (soft way, zeta = 3e9 Pa/m) to its end (0.6 s: the landing, the
+/// bounce and the second landing) with `friction`: steps in contact, Newton iterations per
+/// contact step, the most in a step, the dissipated energy and the energy-account error
+/// relative to the energy reference.
 #[cfg(feature = "formats")]
 fn ring_drop(method: &str, friction: &str) -> (usize, f64, usize, f64, f64) {
     let overrides = [
         format!("contact.friction={friction}"),
         format!("contact.method=\"{method}\""),
-        "simulation.end_time=0.4".to_string(),
     ];
     let scene = common::fixture::<2>("ring_drop", &overrides);
     let mut sim = scene.simulation().unwrap();
@@ -396,10 +396,10 @@ fn ring_drop(method: &str, friction: &str) -> (usize, f64, usize, f64, f64) {
     )
 }
 
-/// The bundled ring drop with Coulomb 0.3 runs through its landing with each method that takes
+/// The bundled ring drop with Coulomb 0.3 runs to its end with each method that takes
 /// friction, dissipates, and friction keeps the energy account: its error is within 1e-3 of the
 /// frictionless run's (the method's own drift with this penalty and step) and below the
-/// issue's 1 % (the augmented Lagrangian: 2.5 %, not met).
+/// issue's 1 % (the augmented Lagrangian: 4 %, not met).
 // The bundled scene is read through the scene format.
 #[cfg(feature = "formats")]
 fn ring_drop_with_coulomb_friction(method: &str) {
@@ -422,13 +422,14 @@ fn ring_drop_with_coulomb_friction(method: &str) {
             "no friction dissipation: {dissipated} J against {dissipated_0} J frictionless"
         );
     }
-    // The account's error is each method's own (frictionless: soft way 1.72e-3, augmented
-    // Lagrangian 2.17e-2, implicit projection 3.34e-3 of the reference, measured 2026-11-28
-    // at zeta = 3e9 Pa/m; the soft way's was 1.38e-2 at 1e10); friction adds at most 1e-4.
-    // The augmented Lagrangian's multipliers close the gaps on the stored configuration, whose
-    // offset puts energy in at each bounce: it misses the 1 %.
+    // The account's error at the end is each method's own (frictionless: soft way 4.58e-3,
+    // augmented Lagrangian 3.82e-2, implicit projection 1.96e-3 of the reference; with
+    // Coulomb 4.22e-3, 3.72e-2 and 1.95e-3, measured 2026-11-28 at zeta = 3e9 Pa/m; through
+    // the landing, 0.4 s, the soft way's was 1.38e-2 at 1e10). The augmented Lagrangian's
+    // multipliers close the gaps on the stored configuration, whose offset puts energy in at
+    // each bounce: it misses the 1 %.
     let (added, bound) = match method {
-        "augmented_lagrangian" => (1e-3, 2.5e-2),
+        "augmented_lagrangian" => (2e-3, 4e-2),
         _ => (1e-3, 1e-2),
     };
     assert!(
