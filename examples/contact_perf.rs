@@ -8,7 +8,8 @@
 //!   per edge split into tetrahedra), arriving at 1.4 m/s (a 0.1 m drop), zeta = 1e8 Pa/m,
 //!   h = 1e-3 s, 100 steps (the box leaves the plane after about 45).
 //!
-//! Last line: the wall time of the whole run (the first step included) per simulated second,
+//! Then the memory the linear solver holds against the process's peak (Linux), and last the
+//! wall time of the whole run (the first step included) per simulated second,
 //! on the rayon pool's threads (`RAYON_NUM_THREADS=1` for one).
 
 mod common;
@@ -75,6 +76,7 @@ fn main() -> Result<()> {
     let t = Instant::now();
     sim.step()?; // the one-time analysis and factorisation
     let first = t.elapsed().as_secs_f64();
+    let peak_after_first = common::peak_resident_bytes();
     for _ in 0..steps {
         let t = Instant::now();
         let r = sim.step()?;
@@ -109,6 +111,13 @@ fn main() -> Result<()> {
         c / f,
         mean(&contact) / mean(&free)
     );
+    println!("{}", common::memory_line(&sim.solver_memory()));
+    if let Some(peak) = peak_after_first {
+        println!(
+            "peak resident after the first step (contact-free factor only): {:.1} MiB",
+            peak as f64 / (1024.0 * 1024.0)
+        );
+    }
     let simulated = sim.state().time;
     println!(
         "wall {wall:.2} s for {simulated:.3} s simulated ({} steps, {} rayon threads): {:.1} wall s per simulated s",

@@ -13,6 +13,37 @@ pub fn median(mut v: Vec<f64>) -> f64 {
     v[v.len() / 2]
 }
 
+/// The process's peak resident memory so far (bytes): `VmHWM` of `/proc/self/status`; `None`
+/// where there is no such file (not Linux).
+pub fn peak_resident_bytes() -> Option<u64> {
+    let status = std::fs::read_to_string("/proc/self/status").ok()?;
+    let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
+    let kib: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kib * 1024)
+}
+
+/// One line on memory: the process's peak against the linear solver's factor, the figure the
+/// performance issue's target is set on ("peak memory within 2x the factor's size").
+pub fn memory_line(memory: &softway::simulation::SolverMemory) -> String {
+    let mib = |b: f64| b / (1024.0 * 1024.0);
+    let factor = memory.factor as f64;
+    let mut line = format!(
+        "memory: factor values {:.1} MiB, kept contact factors {:.1} MiB, stored matrices {:.1} MiB",
+        mib(factor),
+        mib(memory.contact_factors as f64),
+        mib(memory.matrices as f64)
+    );
+    match peak_resident_bytes() {
+        Some(peak) => line.push_str(&format!(
+            "; peak resident {:.1} MiB = {:.2}x the factor",
+            mib(peak as f64),
+            peak as f64 / factor
+        )),
+        None => line.push_str("; peak resident: not measured (no /proc/self/status)"),
+    }
+    line
+}
+
 /// The arithmetic mean; NaN for no samples.
 pub fn mean(v: &[f64]) -> f64 {
     v.iter().sum::<f64>() / v.len() as f64

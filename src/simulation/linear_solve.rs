@@ -38,11 +38,39 @@ const STRONG_CHANGE: f64 = 0.5;
 /// Contact factorisations kept as preconditioners. Two: Newton often returns to the contact
 /// set of the previous iteration or step after one excursion (a node released by the predictor
 /// and caught again), and each factorisation costs a dozen or more solves.
-const CONTACT_FACTORS_KEPT: usize = 2;
+pub(super) const CONTACT_FACTORS_KEPT: usize = 2;
 
 /// Conjugate-gradient iterations allowed to refine a solve with a fresh single-precision
 /// factorisation before it is redone in double precision.
 const SINGLE_PRECISION_REFINEMENT: usize = 10;
+
+/// The memory the linear solves hold (bytes), from [`Simulation::solver_memory`]: what a
+/// host budgets for, and what the performance chapter compares with the process's peak.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct SolverMemory {
+    /// The values of the contact-free iteration matrix's factor (double precision), the
+    /// largest single item of a 3D problem.
+    pub factor: usize,
+    /// The values of the kept contact factorisations (single precision where they are).
+    pub contact_factors: usize,
+    /// Values and indices of the stored sparse matrices: stiffness, mass, damping and the
+    /// contact-free iteration matrix.
+    pub matrices: usize,
+}
+
+impl SolverMemory {
+    /// The sum of the three (bytes).
+    pub fn total(&self) -> usize {
+        self.factor + self.contact_factors + self.matrices
+    }
+}
+
+/// Bytes of a compressed-column matrix: its values, row indices and column pointers.
+fn matrix_bytes(matrix: &SparseColMat<usize, f64>) -> usize {
+    let entries = matrix.val().len();
+    entries * (std::mem::size_of::<f64>() + std::mem::size_of::<usize>())
+        + (matrix.ncols() + 1) * std::mem::size_of::<usize>()
+}
 
 /// The factored contact-free iteration matrix for one step size.
 pub(super) struct IterationSystem {
@@ -138,6 +166,25 @@ where
     Dim<D>: SpatialDim<D>,
 {
     /// Factors the contact-free iteration matrix for step size `h` unless it already is.
+    /// The memory the linear solves hold now (bytes): factor values and stored matrices.
+    /// Nothing is factored before the first step.
+    pub fn solver_memory(&self) -> SolverMemory {
+        let system = self.caches.system.as_ref();
+        SolverMemory {
+            factor: system.map_or(0, |s| s.cholesky.value_bytes()),
+            contact_factors: self
+                .caches
+                .contact_factors
+                .iter()
+                .map(|f| f.cholesky.value_bytes())
+                .sum(),
+            matrices: matrix_bytes(&self.matrices.stiffness)
+                + matrix_bytes(&self.matrices.mass)
+                + self.damping.as_ref().map_or(0, matrix_bytes)
+                + system.map_or(0, |s| matrix_bytes(&s.matrix)),
+        }
+    }
+
     pub(super) fn ensure_system(&mut self, h: f64) -> Result<()> {
         if self
             .caches
@@ -503,8 +550,11 @@ where
     }
 
     /// Keeps a new contact factorisation (of `A0 + entries`) as the newest preconditioner; the
-    /// oldest beyond [`CONTACT_FACTORS_KEPT`] is forgotten by the state (the cache keeps it
-    /// until the step is committed, so that a failed step restores without refactoring).
+    /// oldest beyond [`CONTACT_FACTORS_KEPT`] is forgotten by the state, and by the cache at
+    /// once. (The cache kept them until the next step: a step that factored twice held four,
+    /// 1070 MiB of a 2067 MiB peak on a 73k-unknown cube; the performance chapter, Memory.) A
+    /// failed step restores a state that may name a dropped one: the next attempt's
+    /// [`Self::sync_contact_factors`] factors it again, the same bits.
     fn keep_contact_factor(
         &mut self,
         cholesky: SparseCholesky,
@@ -526,6 +576,10 @@ where
         );
         memory.factors.truncate(CONTACT_FACTORS_KEPT);
         let diagonal = self.free_contact_diagonal(entries);
+        let named = &self.state.contact_memory.factors;
+        self.caches
+            .contact_factors
+            .retain(|f| named.iter().any(|r| r.id == f.id));
         self.caches.contact_factors.insert(
             0,
             ContactFactor {

@@ -38,6 +38,7 @@ mod weighted_projection;
 pub use contacts::{ContactEvent, ContactMaster, ContactPoint, Touching};
 pub use fixed_timestep::{FixedTimestep, FrameReport};
 pub use handles::{BodyId, ObstacleId, Slots};
+pub use linear_solve::SolverMemory;
 pub use model::{Body, Constraint, MassKind, Model, RayleighDamping, Settings};
 pub use monitor::{
     energy_created, Overlap, RunMonitor, Tunnel, ENERGY_FAILURE, ENERGY_WARNING,

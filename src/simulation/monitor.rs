@@ -369,6 +369,13 @@ impl RunMonitor {
         }
     }
 
+    /// The largest energy created so far, as a fraction of the input, on the measure the
+    /// warnings use (the scheme's conserved energy; outside the stability window, the larger
+    /// of it and the mechanical energy): 0 when none was created.
+    pub fn energy_created_peak(&self) -> f64 {
+        self.created_peak
+    }
+
     /// What the monitor saw, as summary warnings.
     pub fn warnings(&self) -> Vec<String> {
         let mut w = Vec::new();

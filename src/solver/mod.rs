@@ -278,6 +278,17 @@ impl SparseCholesky {
         Ok(values)
     }
 
+    /// Bytes of the stored factor's values: 8 per entry in double precision, 4 in single, 0
+    /// before the first numeric factorisation. (The symbolic structure, shared by every
+    /// factorisation of the pattern, is not counted.)
+    pub fn value_bytes(&self) -> usize {
+        match &self.values {
+            Values::None => 0,
+            Values::Double(v) => v.len() * std::mem::size_of::<f64>(),
+            Values::Single(v) => v.len() * std::mem::size_of::<f32>(),
+        }
+    }
+
     /// Whether the stored factor is in single precision.
     pub fn is_single_precision(&self) -> bool {
         matches!(self.values, Values::Single(_))

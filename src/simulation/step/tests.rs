@@ -395,6 +395,63 @@ fn single_precision_contact_factors_give_the_double_precision_answer() {
     assert!(diff < 1e-6 * scale, "{diff} vs {scale}");
 }
 
+/// `solver_memory` counts what is factored: nothing before the first step, the contact-free
+/// factor in double precision after it, and each kept contact factor on the same pattern at
+/// half those bytes in single precision, the full bytes in double.
+#[test]
+fn solver_memory_counts_the_factors_held() {
+    let (fresh, _) = dropped_block(1e8, true, 0);
+    let before = fresh.solver_memory();
+    assert_eq!((before.factor, before.contact_factors), (0, 0));
+    assert!(before.matrices > 0);
+    for single in [true, false] {
+        let (sim, _) = dropped_block(1e8, single, 4);
+        let memory = sim.solver_memory();
+        let entries = sim
+            .caches
+            .system
+            .as_ref()
+            .unwrap()
+            .cholesky
+            .factor_entries();
+        assert_eq!(memory.factor, 8 * entries);
+        let kept = sim.caches.contact_factors.len();
+        assert!(kept > 0, "a contact matrix was factored");
+        // The plane adds only diagonal blocks: the contact factors share A0's pattern.
+        let per_factor = if single { 4 * entries } else { 8 * entries };
+        assert_eq!(memory.contact_factors, kept * per_factor);
+        assert_eq!(
+            memory.total(),
+            memory.factor + memory.contact_factors + memory.matrices
+        );
+    }
+}
+
+/// The cache drops a contact factorisation as soon as the state forgets it (it held the
+/// forgotten ones until the next step began: a step that factored twice held four).
+#[test]
+fn the_cache_holds_only_the_contact_factors_the_state_names() {
+    let (mut sim, _) = dropped_block(1e8, true, 4);
+    let h = sim.model.settings.time_step;
+    let b = vec![1.0; sim.prescribed.len()];
+    let before = sim.state.contact_memory.next_factor;
+    for _ in 0..3 {
+        sim.factor_contact(&[], &[], &b, 1e-9, h, sim.state.step + 1)
+            .unwrap();
+    }
+    assert_eq!(sim.state.contact_memory.next_factor, before + 3);
+    let named = &sim.state.contact_memory.factors;
+    assert_eq!(
+        sim.caches.contact_factors.len(),
+        super::super::linear_solve::CONTACT_FACTORS_KEPT
+    );
+    assert!(sim
+        .caches
+        .contact_factors
+        .iter()
+        .all(|f| named.iter().any(|r| r.id == f.id())));
+}
+
 /// The general path (internal forces and tangent from the element kernel every Newton
 /// iteration, the path of laws that are not linear) gives the linear fast path's answer.
 #[test]
