@@ -84,7 +84,7 @@ fn drop_cube_measured(method: ContactMethod, gaps: GapDisplacement) -> Drop {
             let e = sim.energies();
             eprintln!(
                 "t {:.4} it {} active {} pen {:.3e} K {:.3} U {:.3} W {:.3} D {:.3} created (E) {:.3} \
-                 Q {:.4} created (Q, peak so far) {:.3}",
+                 Q {:.4} created (Q, peak so far) {:.3} pz {:.4}",
                 r.time,
                 r.iterations,
                 r.active_contacts,
@@ -95,7 +95,8 @@ fn drop_cube_measured(method: ContactMethod, gaps: GapDisplacement) -> Drop {
                 e.dissipated,
                 energy_created(e0, &e),
                 sim.scheme_energy(),
-                monitor.energy_created_peak()
+                monitor.energy_created_peak(),
+                sim.body_momentum(sim.body_ids()[0]).unwrap()[2]
             );
         }
     }

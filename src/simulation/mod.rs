@@ -18,6 +18,7 @@ mod contact_terms;
 mod contacts;
 mod damping;
 mod edit;
+mod energy_projection;
 mod fixed_timestep;
 mod handles;
 mod line_search;

@@ -509,6 +509,19 @@ where
                 for i in 0..ndof {
                     u1[i] += gap_u1[i] - gap_before[i];
                 }
+                if super::energy_projection::ENERGY_NEUTRAL_PROJECTION
+                    && rule == EndProjection::Active
+                    && self.model.contact.projection == ProjectionMetric::Step
+                {
+                    self.remove_projection_energy(
+                        &u_before,
+                        &u1,
+                        &mut v1,
+                        f_ext,
+                        h,
+                        material_history,
+                    );
+                }
                 if rule != EndProjection::None {
                     projection_dissipation = self.projection_dissipation(
                         [&u_before, &v_before],
