@@ -164,6 +164,11 @@ pub struct RunMonitor {
     /// `gap_displacement`), whose offset at impacts is what creates energy on a bouncing body.
     #[serde(default)]
     configuration_gaps: bool,
+    /// Whether implicit projection's end-of-step correction may put in any energy (the
+    /// paper's `projection_energy`), which is what creates energy on a soft body at a game's
+    /// step.
+    #[serde(default)]
+    projection_energy_booked: bool,
     /// The stability warning of a scheme outside the unconditionally stable window, whose
     /// conserved quantity Q is no norm (g < 0): modes stiffer than its limit grow while Q
     /// stays, so the mechanical energy E is watched too, from `e0_mechanical`.
@@ -201,6 +206,8 @@ impl RunMonitor {
             created_mechanical: false,
             outside_window: sim.model.settings.scheme.stability_warning(),
             method: detector.map(|_| sim.model.contact.method),
+            projection_energy_booked: sim.model.contact.projection_energy
+                == crate::contact::ProjectionEnergy::Booked,
             configuration_gaps: sim.model.contact.gap_displacement
                 == crate::contact::GapDisplacement::Configuration,
             // A tenth of the mean boundary facet (the margin is a quarter of it).
@@ -453,6 +460,10 @@ impl RunMonitor {
             Some(ContactMethod::SoftWay | ContactMethod::AugmentedLagrangian) => {
                 "the penalty is too stiff for the time step: use a smaller time_step or a \
                  smaller penalty, or implicit_projection"
+            }
+            Some(ContactMethod::ImplicitProjection) if self.projection_energy_booked => {
+                "implicit_projection's end-of-step correction can put energy in where it moves                  a compressed contact patch: use contact.projection_energy = \"bounded\" (it \
+                 then gives back at most what the contacts dissipated), or a smaller time_step"
             }
             _ => "use a smaller time_step",
         };

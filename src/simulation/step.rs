@@ -12,7 +12,7 @@ use super::{end_positions, invalid, Simulation, StepReport};
 use crate::assembly;
 use crate::contact::methods::projection::{project, Applied, BodyImpulse, ProjectionContext};
 use crate::contact::methods::{self, EndProjection, Method};
-use crate::contact::{ContactMethod, GapDisplacement, Master, ProjectionMetric};
+use crate::contact::{ContactMethod, GapDisplacement, Master, ProjectionEnergy, ProjectionMetric};
 use crate::dim::{Dim, SpatialDim};
 use crate::error::{Error, Result};
 use crate::time::SpaceTimeScheme;
@@ -509,7 +509,7 @@ where
                 for i in 0..ndof {
                     u1[i] += gap_u1[i] - gap_before[i];
                 }
-                if super::energy_projection::ENERGY_NEUTRAL_PROJECTION
+                if self.model.contact.projection_energy == ProjectionEnergy::Bounded
                     && rule == EndProjection::Active
                     && self.model.contact.projection == ProjectionMetric::Step
                 {
@@ -520,6 +520,7 @@ where
                         f_ext,
                         h,
                         material_history,
+                        self.state.dissipated_energy + h * terms.dissipation_rate,
                     );
                 }
                 if rule != EndProjection::None {

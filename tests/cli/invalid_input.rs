@@ -232,6 +232,13 @@ fn out_of_range_numbers() {
             "\"step\" or \"node\"",
         ),
         (
+            "projection_energy_unknown",
+            "contact.projection_energy",
+            "projection_energy = \"free\"",
+            "\"free\"",
+            "\"booked\" or \"bounded\"",
+        ),
+        (
             "uzawa_penalty_unknown",
             "contact.uzawa_penalty",
             "uzawa_penalty = \"doubling\"",

@@ -12,8 +12,8 @@ use super::schema::{
 use super::{LoadedScene, OutputOptions, Probe, Scene};
 use crate::contact::resolution::DEFAULT_REGULARIZATION;
 use crate::contact::{
-    ContactMethod, ContactSettings, FrictionLaw, GapDisplacement, PenaltyForce, ProjectionMetric,
-    UzawaPenalty,
+    ContactMethod, ContactSettings, FrictionLaw, GapDisplacement, PenaltyForce, ProjectionEnergy,
+    ProjectionMetric, UzawaPenalty,
 };
 use crate::dim::{Dim, Kinematics, SpatialDim};
 use crate::error::{Error, Result};
@@ -380,6 +380,14 @@ impl LoadedScene {
                 ("node", ProjectionMetric::Node),
             ],
         )?;
+        let projection_energy = self.keyword(
+            "contact.projection_energy",
+            c.projection_energy.as_deref(),
+            &[
+                ("booked", ProjectionEnergy::Booked),
+                ("bounded", ProjectionEnergy::Bounded),
+            ],
+        )?;
         let penalty_force = self.keyword(
             "contact.penalty_force",
             c.penalty_force.as_deref(),
@@ -418,6 +426,7 @@ impl LoadedScene {
             friction,
             gap_displacement,
             projection,
+            projection_energy,
             penalty_force,
             uzawa_penalty,
             ..ContactSettings::default()

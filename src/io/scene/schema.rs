@@ -154,6 +154,9 @@ pub struct ContactSection {
     /// Implicit projection's end-of-step projection: "step" | "node".
     #[serde(default)]
     pub projection: Option<String>,
+    /// The energy that projection may put in: "booked" | "bounded".
+    #[serde(default)]
+    pub projection_energy: Option<String>,
     /// The soft way's pressure: "end_of_step" | "secant".
     #[serde(default)]
     pub penalty_force: Option<String>,
@@ -176,6 +179,7 @@ impl Default for ContactSection {
             friction: FrictionSpec::Frictionless,
             gap_displacement: None,
             projection: None,
+            projection_energy: None,
             penalty_force: None,
             uzawa_penalty: None,
         }
