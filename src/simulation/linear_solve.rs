@@ -165,7 +165,6 @@ impl<const D: usize> Simulation<D>
 where
     Dim<D>: SpatialDim<D>,
 {
-    /// Factors the contact-free iteration matrix for step size `h` unless it already is.
     /// The memory the linear solves hold now (bytes): factor values and stored matrices.
     /// Nothing is factored before the first step.
     pub fn solver_memory(&self) -> SolverMemory {
@@ -185,6 +184,7 @@ where
         }
     }
 
+    /// Factors the contact-free iteration matrix for step size `h` unless it already is.
     pub(super) fn ensure_system(&mut self, h: f64) -> Result<()> {
         if self
             .caches
@@ -552,7 +552,7 @@ where
     /// Keeps a new contact factorisation (of `A0 + entries`) as the newest preconditioner; the
     /// oldest beyond [`CONTACT_FACTORS_KEPT`] is forgotten by the state, and by the cache at
     /// once. (The cache kept them until the next step: a step that factored twice held four,
-    /// 1070 MiB of a 2067 MiB peak on a 73k-unknown cube; the performance chapter, Memory.) A
+    /// 1070 MiB of a 2076 MiB peak on a 73k-unknown cube; the performance chapter, Memory.) A
     /// failed step restores a state that may name a dropped one: the next attempt's
     /// [`Self::sync_contact_factors`] factors it again, the same bits.
     fn keep_contact_factor(

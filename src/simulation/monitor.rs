@@ -164,9 +164,9 @@ pub struct RunMonitor {
     /// `gap_displacement`), whose offset at impacts is what creates energy on a bouncing body.
     #[serde(default)]
     configuration_gaps: bool,
-    /// Whether implicit projection's end-of-step correction may put in any energy (the
-    /// paper's `projection_energy`), which is what creates energy on a soft body at a game's
-    /// step.
+    /// Whether implicit projection's end-of-step correction may put in any energy
+    /// (`projection_energy = "booked"`, the paper's), which is what creates energy on a soft
+    /// body at a game's step.
     #[serde(default)]
     projection_energy_booked: bool,
     /// The stability warning of a scheme outside the unconditionally stable window, whose
@@ -462,7 +462,8 @@ impl RunMonitor {
                  smaller penalty, or implicit_projection"
             }
             Some(ContactMethod::ImplicitProjection) if self.projection_energy_booked => {
-                "implicit_projection's end-of-step correction can put energy in where it moves                  a compressed contact patch: use contact.projection_energy = \"bounded\" (it \
+                "implicit_projection's end-of-step correction can put energy in where it moves \
+                 a compressed contact patch: use contact.projection_energy = \"bounded\" (it \
                  then gives back at most what the contacts dissipated), or a smaller time_step"
             }
             _ => "use a smaller time_step",
