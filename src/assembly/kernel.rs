@@ -380,7 +380,7 @@ where
 /// `int B^T sigma dV` through the configuration, at fixed stress (the stress's own variation
 /// is the material part; the Jaumann and volume terms, of the order of the stress, are left
 /// out, which keeps the tangent symmetric).
-fn geometric_stiffness<const D: usize>(
+pub(super) fn geometric_stiffness<const D: usize>(
     kinematics: crate::dim::Kinematics,
     shape: &[f64],
     grads: &[SVector<f64, D>],
@@ -392,21 +392,28 @@ fn geometric_stiffness<const D: usize>(
     Dim<D>: SpatialDim<D>,
 {
     let sigma = crate::material::stress_tensor(stress);
-    // The gradient of a unit displacement e_i of node a.
-    let unit = |a: usize, i: usize| {
-        let mut e = SVector::<f64, D>::zeros();
-        e[i] = 1.0;
-        <Dim<D>>::gradient_3d(kinematics, shape[a], &grads[a], r, &e)
-    };
-    for a in 0..shape.len() {
-        for j in 0..D {
-            let ha = unit(a, j) * sigma;
-            for bb in a..shape.len() {
-                for i in 0..D {
-                    let hb = unit(bb, i);
-                    k[bb * D + i][a * D + j] += weight * hb.component_mul(&ha).sum();
-                }
+    // With h(a, i) the 3 x 3 gradient of a unit displacement e_i of node a, the entry is
+    // h(b, i) : (h(a, j) sigma). h(a, i) is e_i (x) grad_a, plus, for i = x in axisymmetry,
+    // the hoop term N_a / r at (z, z); so the entry is delta_ij grad_b . sigma grad_a, plus
+    // N_a N_b sigma_zz / r^2 at i = j = x. (Written out: the 3 x 3 products took a third of a
+    // hypoelastic body's assembly.)
+    let n = shape.len();
+    let in_plane = <Dim<D>>::in_plane_block(&sigma);
+    let mut radial = SVector::<f64, D>::zeros();
+    radial[0] = 1.0;
+    let zero = SVector::<f64, D>::zeros();
+    let mut hoop = [0.0; MAX_NODES];
+    for a in 0..n {
+        hoop[a] = <Dim<D>>::gradient_3d(kinematics, shape[a], &zero, r, &radial)[(2, 2)];
+    }
+    for a in 0..n {
+        let sigma_ga = in_plane * grads[a];
+        for bb in a..n {
+            let s = weight * grads[bb].dot(&sigma_ga);
+            for i in 0..D {
+                k[bb * D + i][a * D + i] += s;
             }
+            k[bb * D][a * D] += weight * hoop[a] * hoop[bb] * sigma[(2, 2)];
         }
     }
 }

@@ -16,6 +16,8 @@ use crate::material::{ConstitutiveLaw, Material};
 use std::sync::Arc;
 
 mod kernel;
+#[cfg(test)]
+use kernel::geometric_stiffness;
 
 #[allow(unused_imports)] // for `internals` users; the kernel itself calls it directly
 pub use kernel::spatial_gradients;

@@ -335,3 +335,56 @@ fn equivalent_strain_of_a_stretch_and_a_rotation() {
     assert!(super::equivalent_log_strain(&rotation) < 1e-12);
     assert!(super::equivalent_log_strain(&-Matrix3::identity()).is_nan());
 }
+
+/// The geometric stiffness written out against its definition, entry by entry:
+/// `h(b, i) : (h(a, j) sigma)` with `h(a, i)` the 3 x 3 gradient of a unit displacement `e_i`
+/// of node `a` (the hoop term included). The differences above cannot see the axisymmetric
+/// hoop term (it is of the order stress / E, inside their tolerance); this can.
+#[test]
+fn the_geometric_stiffness_is_its_definition() {
+    fn compare<const D: usize>(kinematics: Kinematics)
+    where
+        Dim<D>: SpatialDim<D>,
+    {
+        let n = 4;
+        let shape: Vec<f64> = (0..n).map(|a| 0.1 + 0.2 * a as f64).collect();
+        let grads: Vec<SVector<f64, D>> = (0..n)
+            .map(|a| SVector::from_fn(|i, _| ((a * 5 + i * 3) % 7) as f64 - 3.1))
+            .collect();
+        let stress =
+            Voigt::from_fn(|i, _| 1e4 * (1.0 + i as f64) * if i % 2 == 0 { 1.0 } else { -0.7 });
+        let (r, weight) = (0.37, 0.8);
+        let mut k = [[0.0f64; MAX_DOFS]; MAX_DOFS];
+        geometric_stiffness::<D>(kinematics, &shape, &grads, r, &stress, weight, &mut k);
+        let sigma = crate::material::stress_tensor(&stress);
+        let unit = |a: usize, i: usize| {
+            let mut e = SVector::<f64, D>::zeros();
+            e[i] = 1.0;
+            <Dim<D>>::gradient_3d(kinematics, shape[a], &grads[a], r, &e)
+        };
+        let mut hoop_seen = 0.0f64;
+        for a in 0..n {
+            for j in 0..D {
+                for b in a..n {
+                    for i in 0..D {
+                        let exact = weight * unit(b, i).component_mul(&(unit(a, j) * sigma)).sum();
+                        let got = k[b * D + i][a * D + j];
+                        assert!(
+                            (got - exact).abs() <= 1e-12 * exact.abs().max(1e3),
+                            "{kinematics:?} ({b},{i}) ({a},{j}): {got} against {exact}"
+                        );
+                        if i == 0 && j == 0 {
+                            hoop_seen =
+                                hoop_seen.max((unit(b, 0)[(2, 2)] * unit(a, 0)[(2, 2)]).abs());
+                        }
+                    }
+                }
+            }
+        }
+        assert_eq!(hoop_seen > 0.0, kinematics == Kinematics::Axisymmetric);
+    }
+    compare::<2>(Kinematics::PlaneStrain);
+    compare::<2>(Kinematics::PlaneStress);
+    compare::<2>(Kinematics::Axisymmetric);
+    compare::<3>(Kinematics::Solid);
+}
