@@ -236,7 +236,7 @@ fn out_of_range_numbers() {
             "contact.projection_energy",
             "projection_energy = \"free\"",
             "\"free\"",
-            "\"booked\" or \"bounded\"",
+            "\"bounded\" or \"booked\"",
         ),
         (
             "uzawa_penalty_unknown",

@@ -384,8 +384,8 @@ impl LoadedScene {
             "contact.projection_energy",
             c.projection_energy.as_deref(),
             &[
-                ("booked", ProjectionEnergy::Booked),
                 ("bounded", ProjectionEnergy::Bounded),
+                ("booked", ProjectionEnergy::Booked),
             ],
         )?;
         let penalty_force = self.keyword(
