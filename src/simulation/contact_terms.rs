@@ -256,7 +256,21 @@ where
                 * f64::EPSILON
                 * (2.0 * reach / h + normal_velocity.abs() + master_velocity.norm());
             terms.round_off = terms.round_off.hypot(noise);
-            let law = self.friction_law(obstacle);
+            // A projection's edge pair (the second body's node beyond the first one's holding
+            // nodes, `held_pairs`) holds the normal only: the patch's friction is the first
+            // body's, and two sticking pairs on the same edge over-constrain the slip.
+            let edge_pair = match pair.master {
+                Master::Facet(f) => {
+                    !input.method.symmetric_pairs()
+                        && surface.facet_body()[f] < self.body_of_node(s)
+                }
+                Master::Obstacle(_) => false,
+            };
+            let law = if edge_pair {
+                FrictionLaw::Frictionless
+            } else {
+                self.friction_law(obstacle)
+            };
             // d(-friction)/dw1 (w1 the relative end velocity), the elastic slip after the
             // step, and d friction/d F_n (the non-symmetric coupling).
             let mut anchor = None;

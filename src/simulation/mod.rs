@@ -695,6 +695,11 @@ where
         }
     }
 
+    /// The body a global node belongs to.
+    pub(super) fn body_of_node(&self, node: usize) -> usize {
+        self.node_offsets.partition_point(|&o| o <= node) - 1
+    }
+
     /// The stored internal energy at displacements `u` with the material history `history`
     /// (J): what [`Self::energies`] reports, so that other accounts (the end-of-step
     /// projection's) use the same matrices.

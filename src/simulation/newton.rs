@@ -16,9 +16,7 @@ use super::observe::{IterationInfo, Recorder};
 use super::{end_positions, Simulation};
 use crate::assembly::{self, KernelFields};
 use crate::contact::methods::{self, Method, OuterUpdate, OuterVariables, PairOutcome, PairStatus};
-use crate::contact::{
-    ContactKey, ContactPair, ContactSurface, FrictionLaw, Master, MasterId, Obstacle,
-};
+use crate::contact::{ContactKey, ContactPair, Detector, FrictionLaw, Master, MasterId, Obstacle};
 use crate::dim::{Dim, Kinematics, SpatialDim};
 use crate::error::{Error, Result};
 use crate::friction::{threshold_change, ThresholdSample};
@@ -66,20 +64,60 @@ fn one_pass_self_contact<const D: usize>(
     });
 }
 
+/// The gap (relative to the detection margin) up to which a slave node holds the master body's
+/// surface where it projects: beyond it the node is off that surface.
+const HOLDS_WITHIN_GAP: f64 = 4e-3;
+/// The offset along the master's surface (relative to the detection margin) beyond which a
+/// slave's closest point is not its normal projection: the node lies beyond the master's edge.
+const HOLDS_WITHIN_OFFSET: f64 = 4e-2;
+
+/// Between two bodies under the projections, which node of the body listed first holds the
+/// other body's surface: it has a pair against that body whose closest point is its normal
+/// projection (not an edge or corner it lies beyond), within `HOLDS_WITHIN_GAP` of it.
+fn holding_slaves<const D: usize>(
+    pairs: &[ContactPair<D>],
+    facet_body: &[usize],
+    x: &[SVector<f64, D>],
+    margin: f64,
+) -> std::collections::BTreeSet<(usize, usize)> {
+    pairs
+        .iter()
+        .filter_map(|p| match p.master {
+            Master::Facet(f) if p.gap <= HOLDS_WITHIN_GAP * margin => {
+                let offset = x[p.slave] - p.point;
+                let along = (offset.norm_squared() - p.gap * p.gap).max(0.0).sqrt();
+                (along <= HOLDS_WITHIN_OFFSET * margin).then_some((p.slave, facet_body[f]))
+            }
+            _ => None,
+        })
+        .collect()
+}
+
 /// The detected pairs the method holds. Between two bodies, the penalty methods keep both
 /// passes (each body's nodes against the other's facets, at half the contact area each: the
-/// same total stiffness on matching faces, and no corner of either body left unchecked); the
-/// projections keep one pass (the nodes of the body listed first are slaves) so that no
-/// constraint is duplicated; within a fold, of two pairs that hold each other's slave
-/// (`one_pass_self_contact`), the one with the smaller slave. Implicit projection's end-of-step
-/// projection moves the same pairs that Newton held: moving a dropped pair too (a fold's
-/// corner measured against the other side's end vertex) strained the tip out of what Newton
-/// solved and put energy in. Explicit projection holds nothing in Newton and projects every
-/// pair. `offsets`: the first node of each body.
+/// same total stiffness on matching faces, and no corner of either body left unchecked).
+///
+/// The projections hold each pair as a constraint, and two passes over the same patch hold it
+/// twice: node s on a facet around m and m on a facet around s are nearly the same constraint,
+/// their multipliers split the force arbitrarily, one in tension, and the active set cycles.
+/// So the nodes of the body listed first are slaves, and a node of the other body is a slave
+/// too only beyond the edge of the first one's holding nodes: where its closest point on the
+/// facet it meets has weight on a node that does not hold the second body's surface
+/// (`holding_slaves`). That is the corner of a block resting 1 cm in from the edge of the
+/// block below: one pass left it unheld, and it sank 4 mm into the lower block's edge facet
+/// (whose outer node holds nothing). Such an edge pair holds the normal only (no friction:
+/// `ContactTerms`). Within a
+/// fold, of two pairs that hold each other's slave (`one_pass_self_contact`), the one with the
+/// smaller slave. Implicit projection's end-of-step projection moves the same pairs that
+/// Newton held: moving a dropped pair too (a fold's corner measured against the other side's
+/// end vertex) strained the tip out of what Newton solved and put energy in. Explicit
+/// projection holds nothing in Newton and projects every pair. `x`: the positions the pairs
+/// were detected at; `offsets`: the first node of each body.
 pub(super) fn held_pairs<const D: usize>(
     method: &dyn Method,
     pairs: &mut Vec<ContactPair<D>>,
-    surface: &ContactSurface<D>,
+    detector: &Detector<D>,
+    x: &[SVector<f64, D>],
     offsets: &[usize],
 ) where
     Dim<D>: SpatialDim<D>,
@@ -87,11 +125,19 @@ pub(super) fn held_pairs<const D: usize>(
     if method.symmetric_pairs() || !method.in_newton() {
         return;
     }
+    let surface = detector.surface();
     let facet_body = surface.facet_body();
+    let body = |node: usize| offsets.partition_point(|&o| o <= node) - 1;
+    let holding = holding_slaves(pairs, facet_body, x, detector.options().margin);
     pairs.retain(|p| match p.master {
         Master::Facet(f) => {
-            let slave_body = offsets.partition_point(|&o| o <= p.slave) - 1;
-            facet_body[f] >= slave_body
+            let (slave_body, master_body) = (body(p.slave), facet_body[f]);
+            // Beyond the edge: the closest point has weight on a node that holds nothing.
+            master_body >= slave_body
+                || surface.facets()[f]
+                    .iter()
+                    .zip(&p.barycentric)
+                    .any(|(s, &w)| w > 0.0 && !holding.contains(&(*s, slave_body)))
         }
         Master::Obstacle(_) => true,
     });
@@ -494,7 +540,7 @@ where
                 );
                 candidates = detector.candidates().len();
                 let mut pairs = detector.pairs(&x_gap, &start.obstacles_t1);
-                held_pairs(method, &mut pairs, detector.surface(), &self.node_offsets);
+                held_pairs(method, &mut pairs, detector, &x_gap, &self.node_offsets);
                 if !vars.started {
                     let penetrating: Vec<ContactKey> = pairs
                         .iter()

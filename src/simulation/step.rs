@@ -450,7 +450,7 @@ where
                     &start.obstacles_t1,
                 );
                 let mut pairs = detector.pairs(&x_end, &start.obstacles_t1);
-                held_pairs(method, &mut pairs, detector.surface(), &self.node_offsets);
+                held_pairs(method, &mut pairs, detector, &x_end, &self.node_offsets);
                 let (u_before, v_before) = (u1.clone(), v1.clone());
                 let mut impulses = vec![vec![0.0; D]; self.model.obstacles.len()];
                 // Projected on the gaps' positions; the configuration moves with them.
@@ -474,7 +474,7 @@ where
                                 &start.obstacles_t1,
                             );
                             pairs = detector.pairs(&x_end, &start.obstacles_t1);
-                            held_pairs(method, &mut pairs, detector.surface(), &self.node_offsets);
+                            held_pairs(method, &mut pairs, detector, &x_end, &self.node_offsets);
                         }
                         let du = self.weighted_projection(&pairs, &facets, &x_end, h, step)?;
                         for (g, d) in gap_u1.iter_mut().zip(&du) {
