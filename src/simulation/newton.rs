@@ -106,13 +106,13 @@ fn holding_slaves<const D: usize>(
 /// (`holding_slaves`). That is the corner of a block resting 1 cm in from the edge of the
 /// block below: one pass left it unheld, and it sank 4 mm into the lower block's edge facet
 /// (whose outer node holds nothing). Such an edge pair holds the normal only (no friction:
-/// `ContactTerms`). Within a
-/// fold, of two pairs that hold each other's slave (`one_pass_self_contact`), the one with the
-/// smaller slave. Implicit projection's end-of-step projection moves the same pairs that
-/// Newton held: moving a dropped pair too (a fold's corner measured against the other side's
-/// end vertex) strained the tip out of what Newton solved and put energy in. Explicit
-/// projection holds nothing in Newton and projects every pair. `x`: the positions the pairs
-/// were detected at; `offsets`: the first node of each body.
+/// `ContactTerms`). Within a fold, of two pairs that hold each other's slave
+/// (`one_pass_self_contact`), the one with the smaller slave. Implicit projection's
+/// end-of-step projection moves the same pairs that Newton held: moving a dropped pair too (a
+/// fold's corner measured against the other side's end vertex) strained the tip out of what
+/// Newton solved and put energy in. Explicit projection holds nothing in Newton and projects
+/// every pair. `x`: the positions the pairs were detected at; `offsets`: the first node of
+/// each body.
 pub(super) fn held_pairs<const D: usize>(
     method: &dyn Method,
     pairs: &mut Vec<ContactPair<D>>,
