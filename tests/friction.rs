@@ -4,7 +4,8 @@
 //! 0.1 s and 1 s) on a 25 degree slope with a material damping of 5 % and on a 30 degree slope
 //! with 20 %; with 5 % at 30 degrees it walks, the same under every method once the step
 //! resolves the block; the bundled ring drop runs through its landing with Coulomb 0.3 and
-//! dissipates.
+//! dissipates. Tresca friction between two bodies: a block slowing on another at limit x area
+//! over its mass.
 
 use crate::common;
 
@@ -59,6 +60,16 @@ per_method!(stick, block_on_a_slope_sticks);
 // method at the default step. With 5 % it walks, and so does the converged model
 // ([`walks_near_the_cone_when_lightly_damped`]).
 per_method!(stick_near_the_cone, block_near_the_cone_sticks);
+// Tresca between bodies: 2D implicit projection here; the other methods and 3D are known
+// defects (`open_tresca_between_bodies`).
+#[test]
+fn tresca_between_bodies_d2_implicit_projection() {
+    a_block_slides_on_a_block_under_tresca::<2>(ContactMethod::ImplicitProjection);
+}
+per_method!(
+    coulomb_between_bodies,
+    a_block_slides_on_a_block_under_coulomb
+);
 
 fn block_near_the_cone_sticks<const D: usize>(method: ContactMethod)
 where
@@ -503,3 +514,170 @@ where
 }
 
 both_dims!(undamped_floor_reaction_keeps_swinging);
+
+/// A 5 cm block (E = 1 MPa, 20 % of critical damping at its first mode) set down on a 0.2 m
+/// block resting on the floor, Tresca friction (100 Pa) everywhere, the default scheme and
+/// tolerances, h = 1 ms. Once both have settled (50 ms), the upper block is launched at
+/// 0.3 m/s: over the next 40 ms its momentum falls by limit x A per second (A its bottom face:
+/// 2 m/s^2), the lower one stays, held by the floor (whose limit over its 8x larger face the
+/// drag does not reach), and the energy account closes over the slide. The lower block's top
+/// nodes are 2.5 cm apart and the upper block starts half a spacing off them and slides
+/// 1.04 cm, so the lower nodes under it carry exactly A throughout. (Launched at the first
+/// touch, the block's landing opens and closes the contact, and Tresca acts only while it is
+/// closed.) Under implicit projection the 3D blocks of `determinism.rs` stopped at the first
+/// touch while the friction of a law that does not follow the normal force was switched by
+/// the sign of that force within Newton.
+fn a_block_slides_on_a_block_under_tresca<const D: usize>(method: ContactMethod)
+where
+    Dim<D>: SpatialDim<D>,
+{
+    let limit = 100.0;
+    let area = if D == 2 { 0.05 } else { 0.05 * 0.05 };
+    let mass = 1000.0 * area * 0.05;
+    block_slides_on_a_block::<D>(
+        method,
+        FrictionLaw::Tresca {
+            limit,
+            regularization: 1e-4,
+        },
+        limit * area / mass,
+    );
+}
+
+fn a_block_slides_on_a_block_under_coulomb<const D: usize>(method: ContactMethod)
+where
+    Dim<D>: SpatialDim<D>,
+{
+    let mu = 0.3;
+    block_slides_on_a_block::<D>(
+        method,
+        FrictionLaw::Coulomb {
+            coefficient: mu,
+            regularization: 1e-4,
+        },
+        mu * G,
+    );
+}
+
+fn block_slides_on_a_block<const D: usize>(
+    method: ContactMethod,
+    friction: FrictionLaw,
+    deceleration: f64,
+) where
+    Dim<D>: SpatialDim<D>,
+{
+    let (v0, settle, slide) = (0.3, 0.05, 0.04);
+    let (lower_size, lower_cells, shift) = if D == 2 {
+        ([0.2, 0.05, 0.0], [8, 2, 1], [0.0625, 0.05, 0.0])
+    } else {
+        ([0.2, 0.1, 0.05], [8, 4, 2], [0.0625, 0.0375, 0.05])
+    };
+    let lower: Mesh<D> = block(lower_size, lower_cells, false);
+    let mut upper: Mesh<D> = block([0.05, 0.05, 0.05], [2, 2, 2], false);
+    upper.translate(&vec_d(shift));
+    let (young, density) = (1e6, 1000.0);
+    let rubber = Material::LinearElastic(LinearElastic::new(young, 0.3, density).unwrap());
+    // 20 % of critical at the quarter wave through the 5 cm height.
+    let omega = std::f64::consts::PI * (young / density).sqrt() / (2.0 * 0.05);
+    let damping = 2.0 * 0.2 / omega;
+    let mut g = [0.0; 3];
+    g[D - 1] = -G;
+    let mut sim = Simulation::<D>::builder()
+        .time_step(1e-3)
+        .gravity(vec_d(g))
+        .body(Body::new("lower", lower, rubber).with_damping(0.0, damping))
+        .body(Body::new("upper", upper, rubber).with_damping(0.0, damping))
+        .obstacle(common::floor::<D>())
+        .contact(ContactSettings {
+            method,
+            penalty: 1e9,
+            friction,
+            ..ContactSettings::default()
+        })
+        .build()
+        .unwrap();
+    run_to(&mut sim, settle);
+    let ids = sim.body_ids();
+    for node in 0..sim.body_nodes(ids[1]).unwrap().len() {
+        let v = sim.velocity(ids[1], node).unwrap() + vec_d::<D>([v0, 0.0, 0.0]);
+        sim.set_velocity(ids[1], node, v).unwrap();
+    }
+    let ledger = |sim: &Simulation<D>| {
+        let e = sim.energies();
+        e.total() + e.dissipated - e.external_work
+    };
+    let (before, kinetic) = (ledger(&sim), sim.energies().kinetic);
+    let mean_velocity = |sim: &Simulation<D>, b: BodyId| {
+        sim.body_momentum(b).unwrap()[0] / sim.body_mass(b).unwrap()
+    };
+    let start = mean_velocity(&sim, ids[1]);
+    run_to(&mut sim, settle + slide);
+    let exact = -deceleration * slide;
+    let change = mean_velocity(&sim, ids[1]) - start;
+    let lower_velocity = mean_velocity(&sim, ids[0]);
+    let error = (ledger(&sim) - before).abs() / kinetic;
+    eprintln!(
+        "{D}D {method:?} {friction:?}: velocity change {change:.5} m/s against {exact:.5} \
+         ({:.3}x), lower block {lower_velocity:.2e} m/s, energy error {error:.2e}",
+        change / exact
+    );
+    record(
+        "friction-between-bodies",
+        if matches!(friction, FrictionLaw::Coulomb { .. }) {
+            "coulomb dv"
+        } else {
+            "tresca dv"
+        },
+        (change - exact) / exact,
+    );
+    assert!(
+        (change - exact).abs() < 0.02 * exact.abs(),
+        "{D}D {method:?}: velocity change {change} m/s, expected {exact}"
+    );
+    assert!(
+        lower_velocity.abs() < 1e-3,
+        "{D}D {method:?}: the lower block moves at {lower_velocity} m/s"
+    );
+    assert!(
+        error < 1e-2,
+        "{D}D {method:?}: energy error {error} of the launch's"
+    );
+}
+
+/// Tresca (and viscoplastic) friction between two bodies where the measured slowing falls
+/// short of limit x A / m (2 m/s^2 over 40 ms; measured 2026-11-28). The penalty methods keep
+/// both passes at half the area each, and a law that does not follow the normal force acts
+/// only on the pairs that carry one: the augmented Lagrangian's multipliers put the whole
+/// load on one pass, so half the friction (0.50x), the soft way 0.67x (2D) and 0.52x (3D).
+/// In 3D implicit projection gives 0.73x: where the upper block's perimeter nodes are edge
+/// pairs (frictionless) and take its weight, some of the lower block's slaves under it are
+/// released and stop carrying their area's friction. Coulomb, which follows the force, is
+/// right under every method (`coulomb_between_bodies`).
+mod open_tresca_between_bodies {
+    use super::*;
+    #[test]
+    #[ignore = "0.67x the limit: only the loaded pass of the soft way's two carries an area law's friction"]
+    fn d2_soft_way() {
+        a_block_slides_on_a_block_under_tresca::<2>(ContactMethod::SoftWay);
+    }
+    #[test]
+    #[ignore = "0.52x the limit: only the loaded pass of the soft way's two carries an area law's friction"]
+    fn d3_soft_way() {
+        a_block_slides_on_a_block_under_tresca::<3>(ContactMethod::SoftWay);
+    }
+    #[test]
+    #[ignore = "0.50x the limit: Uzawa puts the load on one pass, and only it carries an area law's friction"]
+    fn d2_augmented_lagrangian() {
+        a_block_slides_on_a_block_under_tresca::<2>(ContactMethod::AugmentedLagrangian);
+    }
+    #[test]
+    #[ignore = "0.50x the limit: Uzawa puts the load on one pass, and only it carries an area law's friction"]
+    fn d3_augmented_lagrangian() {
+        a_block_slides_on_a_block_under_tresca::<3>(ContactMethod::AugmentedLagrangian);
+    }
+    #[test]
+    #[ignore = "0.73x the limit: slaves released where frictionless edge pairs take the load (30 s)"]
+    fn d3_implicit_projection() {
+        a_block_slides_on_a_block_under_tresca::<3>(ContactMethod::ImplicitProjection);
+    }
+}

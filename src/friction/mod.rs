@@ -216,6 +216,12 @@ impl FrictionLaw {
         )
     }
 
+    /// Whether the law's slip limit follows the normal force (Coulomb); the others need only
+    /// whether the contact is closed.
+    pub fn follows_normal_force(&self) -> bool {
+        matches!(self, FrictionLaw::Coulomb { .. })
+    }
+
     /// The return map's slip limit (N) for a normal force `normal_force` (N) and a contact area
     /// `area` (m^2; zero for an open contact or a law without a return map).
     pub fn slip_limit(&self, normal_force: f64, area: f64) -> f64 {

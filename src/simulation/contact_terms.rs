@@ -7,6 +7,7 @@ use std::collections::BTreeMap;
 
 use nalgebra::{SMatrix, SVector};
 
+use super::newton::edge_pair;
 use super::observe::ContactRecord;
 use super::Simulation;
 use crate::contact::gap::{facet_gap, facet_gap_hessian, obstacle_gap_hessian};
@@ -184,6 +185,7 @@ where
             let s = pair.slave;
 
             // Master nodes with their weights, the normal and the gap.
+            let mut facet_weights = None;
             let (key, nodes, normal, gap, master_velocity, obstacle, master_point) =
                 match pair.master {
                     Master::Obstacle(k) => (
@@ -206,6 +208,7 @@ where
                         for i in 0..D {
                             nodes.push((facet[i], -g.weights[i]));
                         }
+                        facet_weights = Some(std::array::from_fn(|i| (facet[i], g.weights[i])));
                         (
                             (s, MasterId::Body(surface.facet_body()[f])),
                             nodes,
@@ -259,14 +262,13 @@ where
             // A projection's edge pair (the second body's node beyond the first one's holding
             // nodes, `held_pairs`) holds the normal only: the patch's friction is the first
             // body's, and two sticking pairs on the same edge over-constrain the slip.
-            let edge_pair = match pair.master {
+            let is_edge_pair = match pair.master {
                 Master::Facet(f) => {
-                    !input.method.symmetric_pairs()
-                        && surface.facet_body()[f] < self.body_of_node(s)
+                    edge_pair(input.method, self.body_of_node(s), surface.facet_body()[f])
                 }
                 Master::Obstacle(_) => false,
             };
-            let law = if edge_pair {
+            let law = if is_edge_pair {
                 FrictionLaw::Frictionless
             } else {
                 self.friction_law(obstacle)
@@ -275,28 +277,37 @@ where
             // step, and d friction/d F_n (the non-symmetric coupling).
             let mut anchor = None;
             let mut d_normal_force = SVector::<f64, D>::zeros();
+            // Under implicit projection a pair is closed while it is in the active set (the
+            // outer loop releases the ones in tension): within Newton an active pair's force is
+            // exact only at convergence, and a law that does not follow the force (Tresca,
+            // viscoplastic) switched on by its sign turns its whole friction on and off with
+            // the noise of a force near zero (the 3D blocks sliding over each other at first
+            // touch: no convergence after four step cuts).
+            let by_active_set = input.method.lagged_friction_threshold();
+            let closed = if by_active_set {
+                normal_stiffness > 0.0
+            } else {
+                normal_force > 0.0
+            };
+            // The force a threshold reads: Coulomb's follows the normal force (the previous
+            // pass's under implicit projection), the other laws' only the status.
+            let threshold_force = if !law.follows_normal_force() {
+                if closed {
+                    1.0
+                } else {
+                    0.0
+                }
+            } else if by_active_set {
+                input.friction_normals.get(&key).copied().unwrap_or(0.0)
+            } else {
+                normal_force
+            };
             let (friction, friction_tangent) = if law == FrictionLaw::Frictionless {
                 (SVector::zeros(), SMatrix::zeros())
             } else if input.method.friction_return_map() && law.has_return_map() {
-                // The return map on the current normal force: the elastic slip is reset
-                // when the contact opens.
-                // Coulomb's threshold: the current normal force, or the previous pass's.
-                let lagged = input.method.lagged_friction_threshold()
-                    && matches!(law, FrictionLaw::Coulomb { .. });
-                let closing_force = if lagged {
-                    input.friction_normals.get(&key).copied().unwrap_or(0.0)
-                } else {
-                    normal_force
-                };
-                let limit = law.slip_limit(closing_force, area);
-                // Closed: a positive force (an active point under implicit projection, whose
-                // force is exact only at convergence).
-                let closed = if lagged {
-                    normal_stiffness > 0.0
-                } else {
-                    normal_force > 0.0
-                };
-                if closed && closing_force > 0.0 {
+                // The return map: the elastic slip is reset when the contact opens.
+                let limit = law.slip_limit(threshold_force, area);
+                if closed && threshold_force > 0.0 {
                     let previous = input
                         .friction_anchors
                         .get(&key)
@@ -315,7 +326,7 @@ where
                         input.slip_directions.get(&key),
                     );
                     anchor = Some(map.anchor);
-                    if !lagged && matches!(law, FrictionLaw::Coulomb { .. }) {
+                    if !by_active_set && law.follows_normal_force() {
                         d_normal_force = map.d_limit * law.slip_limit(1.0, area);
                     }
                     (map.force, map.tangent)
@@ -327,11 +338,10 @@ where
                 // previous pass (a fixed point on the threshold: a sequence of Tresca problems,
                 // each with a symmetric tangent). Only Coulomb's threshold depends on the
                 // force; the other laws need the status.
-                let threshold = match law {
-                    FrictionLaw::Coulomb { .. } => {
-                        input.friction_normals.get(&key).copied().unwrap_or(0.0)
-                    }
-                    _ => normal_force,
+                let threshold = if law.follows_normal_force() {
+                    input.friction_normals.get(&key).copied().unwrap_or(0.0)
+                } else {
+                    threshold_force
                 };
                 if threshold > 0.0 {
                     let (f, d) = law.force(threshold, area, &slip, &normal);
@@ -477,6 +487,7 @@ where
                 obstacle,
                 normal_velocity,
                 anchor,
+                carried_by: if is_edge_pair { facet_weights } else { None },
             });
         }
         terms

@@ -26,7 +26,7 @@ pub(super) fn damping_matrix(
     let values = c.val_mut();
     for j in 0..col_ptr.len() - 1 {
         let node = j / dim;
-        let body = node_offsets.partition_point(|&o| o <= node) - 1;
+        let body = super::body_of(node_offsets, node);
         let RayleighDamping {
             mass: a,
             stiffness: b,

@@ -313,7 +313,7 @@ where
 
     /// The body and local node of a global node.
     pub(crate) fn owner_of(&self, global: usize) -> (usize, usize) {
-        let b = self.node_offsets.partition_point(|&o| o <= global) - 1;
+        let b = self.body_of_node(global);
         (b, global - self.node_offsets[b])
     }
 

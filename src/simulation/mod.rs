@@ -697,7 +697,7 @@ where
 
     /// The body a global node belongs to.
     pub(super) fn body_of_node(&self, node: usize) -> usize {
-        self.node_offsets.partition_point(|&o| o <= node) - 1
+        body_of(&self.node_offsets, node)
     }
 
     /// The stored internal energy at displacements `u` with the material history `history`
@@ -885,4 +885,9 @@ fn centre_of_mass<const D: usize>(
     } else {
         x[offset..offset + count].iter().sum::<SVector<f64, D>>() / count.max(1) as f64
     }
+}
+
+/// The body a global node belongs to, `offsets` holding each body's first node.
+pub(super) fn body_of(offsets: &[usize], node: usize) -> usize {
+    offsets.partition_point(|&o| o <= node) - 1
 }

@@ -13,7 +13,7 @@ use nalgebra::SVector;
 use super::contact_terms::{ContactTerms, RankOne, TermsInput};
 use super::line_search::{free_dot, LineSearch, Verdict};
 use super::observe::{IterationInfo, Recorder};
-use super::{end_positions, Simulation};
+use super::{body_of, end_positions, Simulation};
 use crate::assembly::{self, KernelFields};
 use crate::contact::methods::{self, Method, OuterUpdate, OuterVariables, PairOutcome, PairStatus};
 use crate::contact::{ContactKey, ContactPair, Detector, FrictionLaw, Master, MasterId, Obstacle};
@@ -47,7 +47,7 @@ fn one_pass_self_contact<const D: usize>(
     facet_body: &[usize],
     offsets: &[usize],
 ) {
-    let body = |node: usize| offsets.partition_point(|&o| o <= node) - 1;
+    let body = |node: usize| body_of(offsets, node);
     // The facet each self-contact slave is paired with (one per slave and master body).
     let own: BTreeMap<usize, usize> = pairs
         .iter()
@@ -127,13 +127,13 @@ pub(super) fn held_pairs<const D: usize>(
     }
     let surface = detector.surface();
     let facet_body = surface.facet_body();
-    let body = |node: usize| offsets.partition_point(|&o| o <= node) - 1;
+    let body = |node: usize| body_of(offsets, node);
     let holding = holding_slaves(pairs, facet_body, x, detector.options().margin);
     pairs.retain(|p| match p.master {
         Master::Facet(f) => {
             let (slave_body, master_body) = (body(p.slave), facet_body[f]);
             // Beyond the edge: the closest point has weight on a node that holds nothing.
-            master_body >= slave_body
+            !edge_pair(method, slave_body, master_body)
                 || surface.facets()[f]
                     .iter()
                     .zip(&p.barycentric)
@@ -142,6 +142,13 @@ pub(super) fn held_pairs<const D: usize>(
         Master::Obstacle(_) => true,
     });
     one_pass_self_contact(pairs, surface.facets(), facet_body, offsets);
+}
+
+/// Whether a pair between deformable bodies is a projection's edge pair (`held_pairs`): its
+/// slave in the body listed later. Such a pair is held only beyond the edge of the first
+/// body's holding nodes, and holds the normal only.
+pub(super) fn edge_pair(method: &dyn Method, slave_body: usize, master_body: usize) -> bool {
+    !method.symmetric_pairs() && master_body < slave_body
 }
 
 /// Takes back half of the last Newton increment (backtracking).
@@ -437,6 +444,66 @@ where
     fn node_name(&self, global: usize) -> String {
         let (b, local) = self.owner_of(global);
         format!("node {local} of body `{}`", self.model.bodies[b].name)
+    }
+
+    /// Each pair's normal force for the Coulomb thresholds. A projection's edge pair is
+    /// frictionless (two sticking pairs on one edge over-constrain the slip), so its normal
+    /// force goes to the thresholds of the nodes of its master facet that hold its body, by
+    /// the closest point's weights: the patch's friction limit stays mu times all the load it
+    /// carries. (Frictionless and not passed on, a 5 cm block sliding on a coarser one under
+    /// Coulomb 0.3 slowed at 0.67 (2D) and 0.31 (3D) of mu g: its perimeter nodes were edge
+    /// pairs and carried most of its weight.)
+    fn threshold_samples(
+        &self,
+        pairs: &[PairOutcome<D>],
+        x: &[SVector<f64, D>],
+    ) -> Vec<ThresholdSample<ContactKey>> {
+        let mut forces: BTreeMap<ContactKey, f64> = pairs
+            .iter()
+            .filter(|p| p.carried_by.is_none())
+            .map(|p| (p.key, p.normal_force))
+            .collect();
+        for p in pairs {
+            let Some(facet) = p.carried_by else {
+                continue;
+            };
+            if p.normal_force <= 0.0 {
+                continue;
+            }
+            let body = MasterId::Body(self.body_of_node(p.key.0));
+            let holding: Vec<(ContactKey, f64)> = facet
+                .iter()
+                .filter(|&&(n, w)| w > 0.0 && forces.get(&(n, body)).is_some_and(|&f| f > 0.0))
+                .map(|&(n, w)| ((n, body), w))
+                .collect();
+            let mut holding = holding;
+            if holding.is_empty() {
+                // None of the facet's nodes holds (released while the edge pairs took the
+                // load): the nearest node that does.
+                let nearest = forces
+                    .iter()
+                    .filter(|&(&(n, m), &f)| m == body && f > 0.0 && n != p.key.0)
+                    .map(|(&key, _)| key)
+                    .min_by(|a, b| {
+                        let d = |k: &ContactKey| (x[k.0] - x[p.key.0]).norm_squared();
+                        d(a).total_cmp(&d(b))
+                    });
+                holding.extend(nearest.map(|key| (key, 1.0)));
+            }
+            let total: f64 = holding.iter().map(|(_, w)| w).sum();
+            for (key, w) in holding {
+                *forces.get_mut(&key).expect("held") += p.normal_force * w / total;
+            }
+        }
+        pairs
+            .iter()
+            .filter(|p| p.carried_by.is_none())
+            .map(|p| ThresholdSample {
+                key: p.key,
+                law: self.friction_law(p.obstacle),
+                normal_force: forces[&p.key],
+            })
+            .collect()
     }
 
     /// `obstacle `NAME`` or `body `NAME``.
@@ -769,15 +836,7 @@ where
                     // A lagged threshold (implicit projection's return map, or the smooth law)
                     // follows the normal force until it settles; the penalty methods' return
                     // map reads the current normal force instead.
-                    let samples: Vec<ThresholdSample<ContactKey>> = terms
-                        .pairs
-                        .iter()
-                        .map(|p| ThresholdSample {
-                            key: p.key,
-                            law: self.friction_law(p.obstacle),
-                            normal_force: p.normal_force,
-                        })
-                        .collect();
+                    let samples = self.threshold_samples(&terms.pairs, &x_gap);
                     if let Some(next) = threshold_change(&samples, &friction_normals) {
                         done = false;
                         friction_normals = next;

@@ -439,7 +439,7 @@ where
                 ) else {
                     continue;
                 };
-                let body = self.node_offsets.partition_point(|&o| o <= node) - 1;
+                let body = self.body_of_node(node);
                 let speed = c.travel / sweep.h;
                 let e = groups
                     .entry((body, k))

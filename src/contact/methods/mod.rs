@@ -114,6 +114,10 @@ pub(crate) struct PairOutcome<const D: usize> {
     pub normal_velocity: f64,
     /// The elastic slip after the step (m; return-map laws on closed contacts).
     pub anchor: Option<SVector<f64, D>>,
+    /// A projection's edge pair (frictionless): its master facet's nodes and the closest
+    /// point's weights on them. Those of its nodes that hold the slave's body carry its normal
+    /// force in their Coulomb thresholds.
+    pub carried_by: Option<[(usize, f64); D]>,
 }
 
 /// The normal state of one pair after a converged Newton solve.
