@@ -8,12 +8,26 @@
 use crate::common;
 
 use common::{block, energy_error, vec_d};
-use softway::contact::{ContactMethod, ContactSettings, GapDisplacement, Obstacle, ObstacleShape};
+use softway::contact::{
+    ContactMethod, ContactSettings, FrictionLaw, GapDisplacement, Obstacle, ObstacleShape,
+};
 use softway::dim::{Dim, SpatialDim};
 use softway::prelude::*;
 
 /// The largest penetration over the run and the energy error at its end.
 fn stack<const D: usize>(method: ContactMethod, gaps: GapDisplacement) -> Stack
+where
+    Dim<D>: SpatialDim<D>,
+{
+    stack_with_friction::<D>(method, gaps, FrictionLaw::Frictionless)
+}
+
+/// [`stack`] with a friction law on every contact.
+fn stack_with_friction<const D: usize>(
+    method: ContactMethod,
+    gaps: GapDisplacement,
+    friction: FrictionLaw,
+) -> Stack
 where
     Dim<D>: SpatialDim<D>,
 {
@@ -42,6 +56,7 @@ where
             method,
             penalty: 1e9,
             gap_displacement: gaps,
+            friction,
             ..ContactSettings::default()
         })
         .build()
@@ -348,7 +363,45 @@ mod d3 {
 
 mod open {
     use super::Stack;
-    use softway::contact::{ContactMethod, GapDisplacement};
+    use softway::contact::{ContactMethod, FrictionLaw, GapDisplacement};
+
+    const COULOMB: FrictionLaw = FrictionLaw::Coulomb {
+        coefficient: 0.5,
+        regularization: 1e-4,
+    };
+
+    /// The issue's targets for the stack with Coulomb 0.5 on every contact, 2D (measured
+    /// 2026-11-28, `cargo test --all-features --test suite two_bodies::open -- --ignored`).
+    fn coulomb_stack(method: ContactMethod, deepest: f64) {
+        let Stack {
+            penetration, error, ..
+        } = super::stack_with_friction::<2>(method, GapDisplacement::Configuration, COULOMB);
+        assert!(error < 2e-2, "energy error {error}");
+        assert!(penetration < deepest, "penetration {penetration}");
+    }
+
+    #[test]
+    #[ignore = "stops at step 496 of 500 (t = 0.495 s): Newton out of iterations at a contact between the \
+                middle and top blocks. Before edge pairs passed their normal force on to the \
+                Coulomb thresholds it ran to the end (energy error 1.0e-5, deepest gap 3.5e-4 m, \
+                2.1e-4 m at rest), while a block sliding on a block slowed at 0.31x to 0.67x of mu g"]
+    fn coulomb_stack_implicit_projection_2d() {
+        coulomb_stack(ContactMethod::ImplicitProjection, 1e-3);
+    }
+
+    #[test]
+    #[ignore = "energy error 6.4e-2 (deepest gap 2.9e-4 m; frictionless 3.1e-3); cause not measured. \
+                A candidate: the return map books the elastic slip's reversible work as \
+                dissipation, and the settling stack's sticking contacts load and unload it"]
+    fn coulomb_stack_soft_way_2d() {
+        coulomb_stack(ContactMethod::SoftWay, 2e-3);
+    }
+
+    #[test]
+    #[ignore = "energy error 5.9e-2 (deepest gap 2.7e-4 m), as the soft way's"]
+    fn coulomb_stack_augmented_lagrangian_2d() {
+        coulomb_stack(ContactMethod::AugmentedLagrangian, 2e-3);
+    }
 
     #[test]
     #[ignore = "slow: 0.24 s of its 0.5 in 40 minutes in a dev build (about 20 iterations a step). With one \
