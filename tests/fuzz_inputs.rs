@@ -32,8 +32,11 @@ use rand_chacha::ChaCha8Rng;
 use softway::dim::{Dim, SpatialDim};
 use softway::io::{gmsh, scene};
 
-/// A case that takes longer has hung (the slowest seen: well under a second).
-const CASE_LIMIT: Duration = Duration::from_secs(10);
+/// A case that takes longer has hung. The slowest seen: the corpus's `case_01770` (a strip
+/// exploded at 9.2e18 m/s, self-contact detection over every iterate) takes 3.2 s alone in the
+/// test profile, and over 10 s in a fresh-clone CI run of 2026-11-28 beside the other test
+/// thread; the other cases take well under a second.
+const CASE_LIMIT: Duration = Duration::from_secs(30);
 
 /// Text in a message that betrays a Rust type or a Debug print.
 const LEAKS: [&str; 9] = [
