@@ -61,12 +61,15 @@ where
         })
         .build()
         .unwrap();
-    let (mut penetration, mut settled) = (0.0_f64, 0.0_f64);
+    let (mut penetration, mut settled, mut largest_error) = (0.0_f64, 0.0_f64, 0.0_f64);
     while sim.state().time < 0.5 - 1e-9 {
         let r = sim
             .step()
             .unwrap_or_else(|e| panic!("{method:?}, t = {}: {e}", sim.state().time));
         penetration = penetration.max(r.max_penetration);
+        if sim.state().time > LANDED_AFTER {
+            largest_error = largest_error.max(energy_error(&sim));
+        }
         if sim.state().time > SETTLED_AFTER {
             settled = settled.max(r.max_penetration);
         }
@@ -74,14 +77,20 @@ where
     let error = energy_error(&sim);
     eprintln!(
         "{D}D {method:?} stack, {gaps:?} gaps: largest penetration {penetration:.3e} m \
-         ({settled:.3e} m after {SETTLED_AFTER} s), energy error {error:.2e}"
+         ({settled:.3e} m after {SETTLED_AFTER} s), energy error {error:.2e} (at most \
+         {largest_error:.2e} after {LANDED_AFTER} s)"
     );
     Stack {
         penetration,
         settled,
-        error,
+        error: error.max(largest_error),
     }
 }
+
+/// The blocks have met the floor and each other by then; before it the account's reference is
+/// the little work gravity has done, against which the free fall's bounded swing of E (the
+/// scheme conserves Q) is large.
+const LANDED_AFTER: f64 = 0.05;
 
 /// The stack has landed and rests by then (2D, implicit projection: the last contact change
 /// at 0.41 s).
@@ -93,7 +102,7 @@ struct Stack {
     penetration: f64,
     /// The deepest gap after `SETTLED_AFTER` (m).
     settled: f64,
-    /// The energy account's error, relative to the reference.
+    /// The energy account's largest error after `LANDED_AFTER`, relative to the reference.
     error: f64,
 }
 
@@ -154,8 +163,9 @@ where
 /// (`GapDisplacement::Trapezoid`): the configuration no longer stores a step's travel inside
 /// the other body. Measured 3.1e-5 m (2D) and 5.3e-5 m (3D), ten to twenty times less than
 /// with the paper's configuration gaps, still ten times the static pressure / zeta (the
-/// landing's dynamic pressure); the account loses 2.3e-2 / 1.7e-2 of the reference (the
-/// end-of-step penalty's dissipation, book, contact chapter).
+/// landing's dynamic pressure). The end-of-step penalty's dissipation, which left the account
+/// 2.3e-2 / 1.7e-2 short, is booked (`State::contact_loss`): 2D, at most 1.5e-2 after the
+/// landing, 2.6e-3 at the end.
 fn trapezoid_gaps_keep_the_stack_apart<const D: usize>()
 where
     Dim<D>: SpatialDim<D>,
@@ -164,7 +174,7 @@ where
         penetration, error, ..
     } = stack::<D>(ContactMethod::SoftWay, GapDisplacement::Trapezoid);
     assert!(penetration < 1e-4, "penetration {penetration}");
-    assert!(error < 3e-2, "energy error {error}");
+    assert!(error < 2e-2, "energy error {error}");
 }
 
 /// The ring drop's ring (radii 0.8 and 1 m, 64 x 4 Quad4, E = 5e7 Pa, 1000 kg/m^3, plane
@@ -312,7 +322,33 @@ fn a_soft_ring_dropped_on_a_soft_pad_implicit_projection_half_step() {
     r.rebounds_as_both_methods_do();
 }
 
+/// Coulomb 0.5 on every contact of the stack.
+const COULOMB: FrictionLaw = FrictionLaw::Coulomb {
+    coefficient: 0.5,
+    regularization: 1e-4,
+};
+
+/// The issue's targets for the stack with Coulomb 0.5 on every contact: the account within
+/// 2 % throughout, no node deeper than `deepest`. Measured 2026-11-29 (2D, `cargo test
+/// --all-features --test suite coulomb_stack -- --nocapture`): the soft way's account at most
+/// 1.44e-2 after the landing (8.1e-4 at the end), the augmented Lagrangian's 1.59e-2 (1.1e-3),
+/// deepest gaps 2.9e-4 and 2.7e-4 m. Before the penalty's own loss was booked
+/// (`State::contact_loss`) they ended at 6.4e-2 and 5.9e-2, and peaked at 0.17.
+fn coulomb_stack<const D: usize>(method: ContactMethod, deepest: f64)
+where
+    Dim<D>: SpatialDim<D>,
+{
+    let Stack {
+        penetration, error, ..
+    } = stack_with_friction::<D>(method, GapDisplacement::Configuration, COULOMB);
+    common::verify::record("stack", &format!("energy {D}D Coulomb"), error);
+    assert!(error < 2e-2, "energy error {error}");
+    assert!(penetration < deepest, "penetration {penetration}");
+}
+
 mod d2 {
+    use softway::contact::ContactMethod;
+
     #[test]
     fn a_stack_under_implicit_projection() {
         super::a_stack_under_implicit_projection::<2>();
@@ -329,14 +365,38 @@ mod d2 {
     /// (t = 0.104 s); with the default growing penalty it runs to the end.
     #[test]
     fn a_stack_under_the_augmented_lagrangian() {
-        // Measured: energy error 6.1e-4, largest penetration 3.1e-4 m, the same open defect
+        // Measured (2026-11-29): energy error at most 1.7e-2 after the landing, 2.1e-3 at
+        // the end; largest penetration 2.9e-4 m, the same open defect
         // as the soft way's stack (the depth between the blocks after a step, far above what
         // Uzawa's gaps say).
         super::a_stack_under_the_augmented_lagrangian::<2>();
     }
+    #[test]
+    fn a_coulomb_stack_under_the_soft_way() {
+        super::coulomb_stack::<2>(ContactMethod::SoftWay, 2e-3);
+    }
+    #[test]
+    fn a_coulomb_stack_under_the_augmented_lagrangian() {
+        super::coulomb_stack::<2>(ContactMethod::AugmentedLagrangian, 2e-3);
+    }
 }
 
 mod d3 {
+    use softway::contact::ContactMethod;
+
+    /// Measured 2026-11-29: the account at most 1.38e-2 after the landing (1.9e-4 at the
+    /// end), deepest gap 3.7e-4 m.
+    #[test]
+    #[ignore = "slow: about 16 minutes in a dev build with threads (beside the next test); passes"]
+    fn a_coulomb_stack_under_the_soft_way() {
+        super::coulomb_stack::<3>(ContactMethod::SoftWay, 2e-3);
+    }
+    #[test]
+    #[ignore = "slow: not finished after 20 minutes in a dev build with threads (beside the soft \
+                way's), not measured; the 2D one runs"]
+    fn a_coulomb_stack_under_the_augmented_lagrangian() {
+        super::coulomb_stack::<3>(ContactMethod::AugmentedLagrangian, 2e-3);
+    }
     #[test]
     #[cfg_attr(
         not(feature = "parallel"),
@@ -353,7 +413,8 @@ mod d3 {
     fn trapezoid_gaps_keep_the_stack_apart() {
         super::trapezoid_gaps_keep_the_stack_apart::<3>();
     }
-    /// Measured: largest penetration 1.04e-3 m, energy error 3.7e-3.
+    /// Measured: largest penetration 1.04e-3 m, energy error 3.7e-3 at the end (before the
+    /// penalty's loss was booked and the account checked throughout).
     #[test]
     #[ignore = "slow (about 40 s); the 2D one runs"]
     fn a_stack_under_the_augmented_lagrangian() {
@@ -363,22 +424,7 @@ mod d3 {
 
 mod open {
     use super::Stack;
-    use softway::contact::{ContactMethod, FrictionLaw, GapDisplacement};
-
-    const COULOMB: FrictionLaw = FrictionLaw::Coulomb {
-        coefficient: 0.5,
-        regularization: 1e-4,
-    };
-
-    /// The issue's targets for the stack with Coulomb 0.5 on every contact, 2D (measured
-    /// 2026-11-28, `cargo test --all-features --test suite two_bodies::open -- --ignored`).
-    fn coulomb_stack(method: ContactMethod, deepest: f64) {
-        let Stack {
-            penetration, error, ..
-        } = super::stack_with_friction::<2>(method, GapDisplacement::Configuration, COULOMB);
-        assert!(error < 2e-2, "energy error {error}");
-        assert!(penetration < deepest, "penetration {penetration}");
-    }
+    use softway::contact::{ContactMethod, GapDisplacement};
 
     #[test]
     #[ignore = "stops at step 496 of 500 (t = 0.495 s): Newton out of iterations at a contact between the \
@@ -386,21 +432,7 @@ mod open {
                 Coulomb thresholds it ran to the end (energy error 1.0e-5, deepest gap 3.5e-4 m, \
                 2.1e-4 m at rest), while a block sliding on a block slowed at 0.31x to 0.67x of mu g"]
     fn coulomb_stack_implicit_projection_2d() {
-        coulomb_stack(ContactMethod::ImplicitProjection, 1e-3);
-    }
-
-    #[test]
-    #[ignore = "energy error 6.4e-2 (deepest gap 2.9e-4 m; frictionless 3.1e-3); cause not measured. \
-                A candidate: the return map books the elastic slip's reversible work as \
-                dissipation, and the settling stack's sticking contacts load and unload it"]
-    fn coulomb_stack_soft_way_2d() {
-        coulomb_stack(ContactMethod::SoftWay, 2e-3);
-    }
-
-    #[test]
-    #[ignore = "energy error 5.9e-2 (deepest gap 2.7e-4 m), as the soft way's"]
-    fn coulomb_stack_augmented_lagrangian_2d() {
-        coulomb_stack(ContactMethod::AugmentedLagrangian, 2e-3);
+        super::coulomb_stack::<2>(ContactMethod::ImplicitProjection, 1e-3);
     }
 
     #[test]

@@ -42,8 +42,12 @@ pub(super) struct ContactTerms<const D: usize> {
     pub round_off: f64,
     /// Penalty energy stored in the gaps (J).
     pub energy: f64,
-    /// Friction dissipation rate (W).
+    /// Friction dissipation rate, and the constraint normal forces' work rate (W).
     pub dissipation_rate: f64,
+    /// The rate of work the penalty normal forces take from the relative motion (W), along
+    /// the trapezoid increment `h (w0 + w1) / 2` the scheme books forces on (constraint
+    /// forces' work is in `dissipation_rate`).
+    pub normal_work_rate: f64,
 }
 
 /// What the contact terms of an iteration read besides the pairs.
@@ -473,8 +477,14 @@ where
                 terms.energy += 0.5 * self.model.contact.penalty * area * gap * gap;
             }
             terms.dissipation_rate += -friction.dot(&slip);
-            if input.method.books_normal_work() {
-                terms.dissipation_rate += -normal_force * normal.dot(&(r0 + r1)) * 0.5;
+            // A constraint stores nothing: its normal force's work is dissipated, signed, like
+            // its end-of-step projection's. A penalty's is booked against what it stores
+            // (`State::contact_loss`).
+            let normal_work_rate = -normal_force * normal.dot(&(r0 + r1)) * 0.5;
+            if input.method.stores_energy() {
+                terms.normal_work_rate += normal_work_rate;
+            } else {
+                terms.dissipation_rate += normal_work_rate;
             }
             terms.pairs.push(PairOutcome {
                 key,

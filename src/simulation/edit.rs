@@ -268,6 +268,7 @@ where
         state.time = old.time;
         state.external_work = old.external_work;
         state.dissipated_energy = old.dissipated_energy;
+        state.contact_loss = old.contact_loss;
         state.contact_energy = old.contact_energy;
         state.body_slots = old.body_slots.clone();
         state.obstacle_slots = old.obstacle_slots.clone();

@@ -72,7 +72,9 @@ pub struct Energies {
     pub contact: f64,
     /// Cumulative work of gravity, loads, moving obstacles and constraint reactions.
     pub external_work: f64,
-    /// Cumulative viscous and friction dissipation.
+    /// Cumulative dissipation: viscous, friction, the projections' corrections (signed), and
+    /// the contacts' normal forces (a constraint's work, signed; a penalty's net loss,
+    /// `State::contact_loss`).
     pub dissipated: f64,
 }
 
@@ -459,6 +461,7 @@ where
             scheme_time_step: 0.0,
             external_work: 0.0,
             dissipated_energy: 0.0,
+            contact_loss: 0.0,
             loads: vec![0.0; ndof],
             obstacle_translations,
             obstacle_velocities,
@@ -691,7 +694,7 @@ where
             internal: self.internal_energy(&s.displacement, &s.material_history),
             contact: s.contact_energy,
             external_work: s.external_work,
-            dissipated: s.dissipated_energy,
+            dissipated: s.dissipated(),
         }
     }
 
@@ -741,6 +744,7 @@ where
         self.state.reference_energy
             + self.state.external_work.abs()
             + self.state.dissipated_energy.abs()
+            + self.state.contact_loss.max(0.0)
     }
 
     /// Energy at t = 0 (J).

@@ -35,8 +35,14 @@ pub struct State {
     pub scheme_time_step: f64,
     /// Cumulative external work (J).
     pub external_work: f64,
-    /// Cumulative dissipation (J).
+    /// Cumulative dissipation (J), but for the penalty contacts' (`contact_loss`).
     pub dissipated_energy: f64,
+    /// Cumulative work the penalty's normal forces took from the bodies, less the growth of the
+    /// energy the gaps store (J), signed: counted as dissipated while positive
+    /// ([`State::dissipated`]); a net gain is energy the contacts created, which the energy
+    /// monitor reports.
+    #[serde(default)]
+    pub contact_loss: f64,
     /// Constant external nodal forces set through the API (N).
     pub loads: Vec<f64>,
     /// Displacement of each obstacle since t = 0 (m), D per obstacle.
@@ -79,6 +85,15 @@ pub struct State {
     /// The handles of the obstacles; empty in states from before handles.
     #[serde(default)]
     pub obstacle_slots: Slots,
+}
+
+impl State {
+    /// Cumulative dissipation (J): the bodies', friction's, the projections' and the
+    /// constraints' plus the penalty contacts' net loss while it is one. A net gain there is
+    /// not booked: the account shows it as energy created.
+    pub fn dissipated(&self) -> f64 {
+        self.dissipated_energy + self.contact_loss.max(0.0)
+    }
 }
 
 /// The parts of contact resolution that carry over from step to step.

@@ -702,7 +702,7 @@ fn energy_creation_is_a_warning() {
 /// The bundled ring drop at alpha = 0.703 (beta = 1 - alpha: outside the stability window,
 /// stable only while k h^2 / m <= 345): its stiff modes grow after the landing while the
 /// scheme's Q, which is no norm there, stays put. The monitor watches the mechanical energy
-/// too: a warning from step 272 and exit status 3 at step 384 (11x the input), naming the
+/// too: a warning from step 271 and exit status 3 at step 384 (11x the input), naming the
 /// scheme. (Watching Q only, the run ended at 0.6 s with exit 0, no energy warning and an
 /// account off by 2.3x its input.)
 #[test]
@@ -726,7 +726,7 @@ fn a_scheme_outside_its_window_that_gains_energy_is_stopped() {
         w.iter().any(|w| w.starts_with(
             "the run created energy: the mechanical energy (kinetic + internal + contact, which \
              the time scheme does not bound outside its stability window) plus the dissipated \
-             energy exceeded the input E(0) + |external work| by 5.3% at step 272"
+             energy exceeded the input E(0) + |external work| by 5.4% at step 271"
         ) && w.contains("the time scheme is the likely cause: alpha = 0.703")),
         "{w:?}"
     );

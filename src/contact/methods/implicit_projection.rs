@@ -175,10 +175,6 @@ impl Method for ImplicitProjection {
         TANGENTIAL_PENALTY * input.diagonal / input.time_step
     }
 
-    fn books_normal_work(&self) -> bool {
-        true
-    }
-
     fn end_projection(&self) -> EndProjection {
         EndProjection::Active
     }

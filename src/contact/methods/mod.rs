@@ -212,14 +212,6 @@ pub(crate) trait Method: Sync {
         EndProjection::None
     }
 
-    /// Whether the normal force's work on the relative motion, `-F_n n . h (w0 + w1) / 2`
-    /// per step (the displacement the scheme's conserved energy books forces on), is booked
-    /// as dissipated: a constraint force stores nothing, so the kinetic energy an inelastic
-    /// stop removes goes there.
-    fn books_normal_work(&self) -> bool {
-        false
-    }
-
     /// Whether the multipliers are carried to the next step.
     fn carries_multipliers(&self) -> bool {
         false
