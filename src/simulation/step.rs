@@ -631,11 +631,12 @@ where
         state.dissipated_energy +=
             h * terms.dissipation_rate + projection_dissipation + damping_loss;
         // What the penalty's normal forces took from the bodies less what the gaps store
-        // more: the paper's end-of-step pressure's zeta A (g1 - g0)^2 / 2 a step (backward Euler on the contact spring) plus the
-        // configuration gaps' offset from the trapezoid increment (the secant's: nothing on
-        // trapezoid gaps); booked while the net is a loss (`State::dissipated`), since a net
-        // gain is the offset's pump, which the monitor must see. Unbooked, a settling stack of
-        // soft blocks under the soft way fell 6 % short of its account.
+        // more: the paper's end-of-step pressure's zeta A (g1 - g0)^2 / 2 a step (backward
+        // Euler on the contact spring) plus the configuration gaps' offset from the trapezoid
+        // increment (the secant's: nothing on trapezoid gaps); booked while the net is a loss
+        // (`State::dissipated`), since a net gain is the offset's pump, which the monitor must
+        // see. Unbooked, a settling stack of soft blocks under the soft way fell 6 % short of
+        // its account.
         state.contact_loss += h * terms.normal_work_rate - (terms.energy - state.contact_energy);
         state.obstacle_translations = start.translations_t1.clone();
         state.obstacle_rotations = start.rotations_t1.clone();
