@@ -241,6 +241,7 @@ where
             .iter()
             .filter_map(|&(n, m, f)| key((n, m)).map(|(n, m)| (n, m, f)))
             .collect();
+        state.active_contacts = old.active_contacts.iter().filter_map(|&k| key(k)).collect();
         state.friction_anchors = old
             .friction_anchors
             .iter()

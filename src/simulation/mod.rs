@@ -471,6 +471,7 @@ where
             multipliers: Vec::new(),
             friction_normals: Vec::new(),
             friction_anchors: Vec::new(),
+            active_contacts: Vec::new(),
             reference_energy: 0.0,
             material_history: vec![0.0; assembly::history_len(&table, &integration)],
             contact_memory: ContactMemory::default(),

@@ -71,6 +71,11 @@ pub struct State {
     /// one per closed contact under a penalty method with Coulomb or Tresca friction, dropped
     /// when the contact opens.
     pub friction_anchors: Vec<(usize, MasterId, Vec<f64>)>,
+    /// Implicit projection: the points held at the end of the last step (slave node, master),
+    /// the start of the next step's active set. Empty in states from before it (the active
+    /// set is then found from the predicted penetrations alone).
+    #[serde(default)]
+    pub active_contacts: Vec<(usize, MasterId)>,
     /// The energy stability is measured against at t = 0 (J) (E(0)).
     pub reference_energy: f64,
     /// Per-quadrature-point history of the materials that carry one, cell by cell.

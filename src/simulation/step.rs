@@ -656,6 +656,7 @@ where
             .iter()
             .filter_map(|p| p.anchor.map(|a| (p.key.0, p.key.1, a.as_slice().to_vec())))
             .collect();
+        state.active_contacts = vars.active.iter().copied().collect();
         if !method.carries_multipliers() {
             state.multipliers.clear();
         }

@@ -40,10 +40,11 @@ fn constraint(normal_velocity: f64, gap: f64, time_step: f64) -> f64 {
 }
 
 impl Method for ImplicitProjection {
-    fn start(&self, vars: &mut OuterVariables, penetrating: &[ContactKey]) {
-        // Points predicted to penetrate with v1 = v0 start active: this also catches points
-        // already touching that the master moves into.
-        vars.active.extend(penetrating.iter().copied());
+    fn start(&self, vars: &mut OuterVariables, starting: &[ContactKey]) {
+        // Points predicted to penetrate with v1 = v0 start active (this also catches points
+        // already touching that the master moves into), and so do the points held when the
+        // last step ended: those about to separate are released by their tension.
+        vars.active.extend(starting.iter().copied());
     }
 
     fn normal_law(

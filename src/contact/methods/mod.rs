@@ -174,8 +174,9 @@ pub(crate) trait Method: Sync {
     }
 
     /// Called once per step with the contacts predicted to penetrate at the first iteration
-    /// (end velocity = start velocity).
-    fn start(&self, _vars: &mut OuterVariables, _penetrating: &[ContactKey]) {}
+    /// (end velocity = start velocity) and those held when the last step ended
+    /// (`State::active_contacts`).
+    fn start(&self, _vars: &mut OuterVariables, _starting: &[ContactKey]) {}
 
     /// The normal law of one pair.
     fn normal_law(
