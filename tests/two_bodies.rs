@@ -454,8 +454,9 @@ mod d3 {
         super::coulomb_stack::<3>(ContactMethod::SoftWay, 2e-3);
     }
     #[test]
-    #[ignore = "slow: not finished after 20 minutes in a dev build with threads (beside the soft \
-                way's), not measured; the 2D one runs"]
+    #[ignore = "slow: 23 minutes in a dev build with threads, alone (2026-11-29); passes: the account \
+                at most 1.78e-2 after the landing, deepest gap 2.2e-4 m, 37,274 Newton \
+                iterations and 414 cut steps; the 2D one runs"]
     fn a_coulomb_stack_under_the_augmented_lagrangian() {
         super::coulomb_stack::<3>(ContactMethod::AugmentedLagrangian, 2e-3);
     }
