@@ -485,14 +485,17 @@ mod open {
     use softway::contact::{ContactMethod, GapDisplacement};
 
     #[test]
-    #[ignore = "stops at step 398 (t = 0.397 s, reached in 21 minutes in a dev build): Newton out of \
-                iterations, the largest residual at a top-block node that is not a contact point, \
-                while the frictionless blocks slide apart; before each step's active set started \
-                from the last one's, 0.24 s took 40 minutes (about 20 iterations a step; now 6 to 16 \
-                from 30 to 60 ms). With one pass the upper block's bottom edge sank 3.44e-3 m into the lower \
-                one; with the edge pairs its deepest gap up to t = 0.24 s was 6.0e-4 m, a master \
-                node inside a patch while the blocks ring, not the micrometre asked (book, contact \
-                chapter, Limits)"]
+    #[ignore = "stops at step 398 (t = 0.397 s, reached in 2.4 minutes in a dev build, 21 before the \
+                coupled terms were solved by GMRES, 2026-11-29): Newton out of iterations, relative \
+                residual 9.9e-4, the largest residual at a top-block node that is not a contact \
+                point, while the frictionless blocks slide apart: from rel 2e-2 each full Newton \
+                step brings one more pair into the terms (17 rank-one terms against 16), the \
+                residual jumps to 1.0 and is halved back, the same without the geometric part \
+                (scratch runs from a checkpoint; one that kept the geometric part in more of the \
+                solves passed it and ran to the end). With one pass \
+                the upper block's bottom edge sank 3.44e-3 m into the lower one; with the edge \
+                pairs its deepest gap up to t = 0.24 s was 6.0e-4 m, a master node inside a patch \
+                while the blocks ring, not the micrometre asked (book, contact chapter, Limits)"]
     fn implicit_projection_3d() {
         // The issue's targets: the account within 2 %, no block inside another.
         let Stack {
@@ -503,5 +506,16 @@ mod open {
         );
         assert!(error < 2e-2, "energy error {error}");
         assert!(penetration < 1e-6, "penetration {penetration}");
+    }
+
+    /// The issue's stack with Coulomb friction, the 3D cell the others leave: soft way and
+    /// augmented Lagrangian pass (slow, `d3`), implicit projection runs in 2D (`d2`).
+    #[test]
+    #[ignore = "stops at step 142 (t = 0.141 s, 2.4 minutes in a dev build, 2026-11-29): Newton \
+                out of iterations, relative residual 3.3e-3, the largest residual at a bottom-block \
+                node held on the middle block, 36 of 91 pairs loaded; the same with the rank-one \
+                terms never left out (a scratch run); the 2D one runs"]
+    fn a_coulomb_stack_under_implicit_projection_3d() {
+        super::coulomb_stack::<3>(ContactMethod::ImplicitProjection, 1e-3);
     }
 }

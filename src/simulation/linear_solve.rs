@@ -10,14 +10,19 @@
 //! (single precision refined by CG; double precision when that fails, then for good). Which
 //! factorisations exist is part of the state ([`ContactMemory`](super::ContactMemory)): they
 //! change the round-off of a step, so a restored or resumed simulation uses the same ones.
+//! With non-symmetric rank-one terms in the tangent (implicit projection's held normals that
+//! turn), the whole operator is solved by flexible GMRES on the same preconditioners
+//! ([`coupled_solve`](Simulation::coupled_solve)).
 
 use faer::sparse::{SparseColMat, Triplet};
 
+use super::contact_terms::RankOne;
 use super::state::FactorRecord;
 use super::Simulation;
 use crate::assembly;
 use crate::dim::{Dim, Kinematics, SpatialDim};
 use crate::error::{Error, Result};
+use crate::solver::krylov::{conjugate_gradients, flexible_gmres};
 use crate::solver::SparseCholesky;
 
 /// Conjugate-gradient iterations allowed on top of the number of strongly changed unknowns
@@ -111,54 +116,62 @@ fn strong_changes(base: &[f64], then: Option<&[f64]>, now: &[f64]) -> usize {
         .count()
 }
 
-/// Preconditioned conjugate gradients on `apply(x) = b` until the residual norm is at most
-/// `target` (never below 1e-10 |b|): the solution and its residual
-/// `b - apply(x)`; `None` if that takes more than `max` iterations.
-fn conjugate_gradients(
-    apply: &dyn Fn(&[f64]) -> Vec<f64>,
-    precondition: &dyn Fn(&mut [f64]),
+/// A solve with the symmetric part of the iteration matrix: right-hand side and residual target
+/// in, solution out.
+type SymmetricSolve<'a> = dyn FnMut(&[f64], f64) -> Result<Vec<f64>> + 'a;
+
+/// Solves `(S + sum u v^T) x = b`, `S` the symmetric part of the iteration matrix (solved by
+/// `solve`, to a residual target) and `u v^T` the non-symmetric rank-one terms of the tangent
+/// (Coulomb slip's threshold coupled to the gap; a held normal velocity whose normal turns), by
+/// the Sherman-Morrison-Woodbury formula: `x = x0 - Z (I + V^T Z)^-1 V^T x0`, `x0 = S^-1 b`,
+/// `Z = S^-1 U`. The Cholesky factorisations only ever see `S`. Prescribed unknowns take no
+/// part. A singular capacitance matrix leaves `x0` (Newton goes on without the coupling).
+/// The fallback of the linear path's flexible GMRES (`coupled_solve`), and the general
+/// path's solve (whose factorisation is exact: one triangular solve per term).
+pub(super) fn woodbury(
+    solve: &mut SymmetricSolve<'_>,
+    coupling: &[RankOne],
+    prescribed: &[Option<f64>],
     b: &[f64],
     target: f64,
-    max: usize,
-) -> Option<(Vec<f64>, Vec<f64>)> {
-    let n = b.len();
-    let dot = |a: &[f64], b: &[f64]| a.iter().zip(b).map(|(x, y)| x * y).sum::<f64>();
-    let b_norm = dot(b, b).sqrt();
-    if b_norm == 0.0 {
-        return Some((vec![0.0; n], vec![0.0; n]));
+) -> Result<Vec<f64>> {
+    let ndof = b.len();
+    let mut x = solve(b, target)?;
+    let m = coupling.len();
+    if m == 0 {
+        return Ok(x);
     }
-    let target = target.max(1e-10 * b_norm);
-    let mut x = b.to_vec();
-    precondition(&mut x);
-    let ax = apply(&x);
-    let mut r: Vec<f64> = b.iter().zip(&ax).map(|(b, a)| b - a).collect();
-    let mut z = r.clone();
-    precondition(&mut z);
-    let mut p = z.clone();
-    let mut rz = dot(&r, &z);
-    for _ in 0..max {
-        if dot(&r, &r).sqrt() <= target {
-            return Some((x, r));
+    let mut z = Vec::with_capacity(m);
+    for (u, _) in coupling {
+        let mut rhs = vec![0.0; ndof];
+        for &(i, a) in u {
+            if prescribed[i].is_none() {
+                rhs[i] += a;
+            }
         }
-        let ap = apply(&p);
-        let alpha = rz / dot(&p, &ap);
-        if !alpha.is_finite() || alpha <= 0.0 {
-            return None;
-        }
-        for i in 0..n {
-            x[i] += alpha * p[i];
-            r[i] -= alpha * ap[i];
-        }
-        z.copy_from_slice(&r);
-        precondition(&mut z);
-        let rz_next = dot(&r, &z);
-        let beta = rz_next / rz;
-        rz = rz_next;
-        for i in 0..n {
-            p[i] = z[i] + beta * p[i];
+        let norm = rhs.iter().map(|r| r * r).sum::<f64>().sqrt();
+        z.push(solve(&rhs, 1e-10 * norm)?);
+    }
+    let mut g = nalgebra::DMatrix::<f64>::identity(m, m);
+    let mut r = nalgebra::DVector::<f64>::zeros(m);
+    for (k, (_, v)) in coupling.iter().enumerate() {
+        for &(i, c) in v {
+            if prescribed[i].is_none() {
+                r[k] += c * x[i];
+                for (l, zl) in z.iter().enumerate() {
+                    g[(k, l)] += c * zl[i];
+                }
+            }
         }
     }
-    (dot(&r, &r).sqrt() <= target).then_some((x, r))
+    if let Some(y) = g.lu().solve(&r) {
+        for (l, zl) in z.iter().enumerate() {
+            for i in 0..ndof {
+                x[i] -= zl[i] * y[l];
+            }
+        }
+    }
+    Ok(x)
 }
 
 impl<const D: usize> Simulation<D>
@@ -595,7 +608,8 @@ where
     /// part makes the matrix indefinite (large pressure on a soft body), Newton goes on without
     /// it. Each matrix is factored in single precision first and the solve refined by
     /// conjugate gradients in double precision (a few iterations); where that does not
-    /// converge (an ill-conditioned matrix), in double precision, solved directly.
+    /// converge (an ill-conditioned matrix), in double precision, solved directly. The solution,
+    /// and whether the geometric part was kept (false when it was left out).
     pub(super) fn factor_contact(
         &mut self,
         entries: &[(usize, usize, f64)],
@@ -604,7 +618,7 @@ where
         target: f64,
         h: f64,
         step: usize,
-    ) -> Result<Vec<f64>> {
+    ) -> Result<(Vec<f64>, bool)> {
         let mut candidates = Vec::new();
         if !geometric.is_empty() {
             let mut with_geometry = entries.to_vec();
@@ -613,7 +627,9 @@ where
         }
         candidates.push(self.free_entries(entries));
         let mut failure = None;
-        for entries in &candidates {
+        for (index, entries) in candidates.iter().enumerate() {
+            // The first candidate has the geometric part, if there is one.
+            let kept = index == 0;
             let matrix = self.contact_matrix(&self.system().matrix, entries)?;
             let mut cholesky = self.analysis_for(&matrix)?;
             if !self.state.contact_memory.double_precision_only
@@ -629,7 +645,7 @@ where
                 if let Some((mut x, residual)) = refined {
                     self.conserve_momentum(&mut x, &residual, h);
                     self.keep_contact_factor(cholesky, entries, h);
-                    return Ok(x);
+                    return Ok((x, kept));
                 }
                 // Too ill-conditioned for single precision: stay in double from now on.
                 self.state.contact_memory.double_precision_only = true;
@@ -639,7 +655,7 @@ where
                     let mut x = b.to_vec();
                     cholesky.solve_in_place(&mut x);
                     self.keep_contact_factor(cholesky, entries, h);
-                    return Ok(x);
+                    return Ok((x, kept));
                 }
                 Err(e) => failure = Some(e),
             }
@@ -647,24 +663,13 @@ where
         Err(failure.expect("at least one candidate matrix"))
     }
 
-    /// Solves `(A0 + K_c) x = b` to a residual norm of `target` by conjugate gradients
-    /// preconditioned with the nearest factored matrix (see the module documentation).
-    /// `None` when the difference is not of low rank, or CG meets a direction of non-positive
-    /// curvature or does not converge in time: the caller then factors `A0 + K_c`.
-    pub(super) fn preconditioned_solve(
-        &self,
-        entries: &[(usize, usize, f64)],
-        geometric: &[(usize, usize, f64)],
-        b: &[f64],
-        target: f64,
-    ) -> Option<Vec<f64>> {
+    /// The factorisation nearest to `A0 + K_c`, `K_c` the contact `entries` on free unknowns
+    /// (`A0`'s or a kept contact one; ties go to the most recent contact one), and the number
+    /// of unknowns whose contact stiffness differs strongly from it. `None` before the
+    /// contact-free matrix is factored.
+    fn nearest_factor(&self, entries: &[(usize, usize, f64)]) -> Option<(&SparseCholesky, usize)> {
         let system = self.caches.system.as_ref()?;
-        // The geometric part enters the operator (CG stops on a direction of non-positive
-        // curvature, and the caller factors instead).
-        let mut entries = self.free_entries(entries);
-        entries.extend(self.free_entries(geometric));
-        let now = self.free_contact_diagonal(&entries);
-        // The nearest factorisation; ties go to the most recent contact one.
+        let now = self.free_contact_diagonal(entries);
         let mut nearest: Option<&ContactFactor> = None;
         let mut changes = strong_changes(&system.diagonal, None, &now);
         for record in self.state.contact_memory.factors.iter().rev() {
@@ -685,11 +690,103 @@ where
                 nearest = Some(f);
             }
         }
+        Some((nearest.map_or(&system.cholesky, |f| &f.cholesky), changes))
+    }
+
+    /// Solves `(A0 + K_c + sum u v^T) x = b`, the iteration matrix with the non-symmetric
+    /// rank-one terms `coupling` (prescribed unknowns take no part), to a residual norm of
+    /// `target` by flexible GMRES preconditioned with the nearest factorisation, factored
+    /// first when more than [`PCG_LOW_RANK`] unknowns changed (as
+    /// [`factor_contact`](Self::factor_contact), which may leave `geometric` out: then it is
+    /// emptied). One Krylov iteration per changed unknown and per rank-one term, where the
+    /// Sherman-Morrison-Woodbury formula takes a whole preconditioned solve per term (the 3D
+    /// stack of blocks under implicit projection: 30 terms, about 200 preconditioner
+    /// solves an iteration). `None` when GMRES does not converge in time.
+    pub(super) fn coupled_solve(
+        &mut self,
+        entries: &[(usize, usize, f64)],
+        geometric: &mut &[(usize, usize, f64)],
+        coupling: &[RankOne],
+        b: &[f64],
+        target: f64,
+        step: usize,
+    ) -> Result<Option<Vec<f64>>> {
+        let Some(h) = self.caches.system.as_ref().map(|s| s.time_step) else {
+            return Ok(None);
+        };
+        // The solve with the symmetric part first, as the start: it factors where the
+        // nearest factorisation is too far, and decides on the geometric part as a solve
+        // without the coupling would.
+        let start = match self.preconditioned_solve(entries, geometric, b, target) {
+            Some(x) => x,
+            None => {
+                let (x, kept) = self.factor_contact(entries, geometric, b, target, h, step)?;
+                if !kept {
+                    *geometric = &[];
+                }
+                x
+            }
+        };
+        let mut all = self.free_entries(entries);
+        all.extend(self.free_entries(geometric));
+        let Some((preconditioner, changes)) = self.nearest_factor(&all) else {
+            return Ok(None);
+        };
+        let free = |i: &usize| self.prescribed[*i].is_none();
+        let coupling: Vec<RankOne> = coupling
+            .iter()
+            .map(|(u, v)| {
+                let keep =
+                    |t: &Vec<(usize, f64)>| t.iter().filter(|(i, _)| free(i)).copied().collect();
+                (keep(u), keep(v))
+            })
+            .collect();
+        let symmetric = self.contact_operator(&all);
+        let apply = |x: &[f64]| {
+            let mut y = symmetric(x);
+            for (u, v) in &coupling {
+                let vx: f64 = v.iter().map(|&(i, c)| c * x[i]).sum();
+                for &(i, a) in u {
+                    y[i] += a * vx;
+                }
+            }
+            y
+        };
+        let solved = flexible_gmres(
+            &apply,
+            &|r| preconditioner.solve_in_place(r),
+            b,
+            start,
+            target,
+            changes + 2 * coupling.len() + PCG_SLACK,
+        );
+        Ok(solved.map(|(mut x, residual)| {
+            self.conserve_momentum(&mut x, &residual, h);
+            x
+        }))
+    }
+
+    /// Solves `(A0 + K_c) x = b` to a residual norm of `target` by conjugate gradients
+    /// preconditioned with the nearest factored matrix (see the module documentation).
+    /// `None` when the difference is not of low rank, or CG meets a direction of non-positive
+    /// curvature or does not converge in time: the caller then factors `A0 + K_c`.
+    pub(super) fn preconditioned_solve(
+        &self,
+        entries: &[(usize, usize, f64)],
+        geometric: &[(usize, usize, f64)],
+        b: &[f64],
+        target: f64,
+    ) -> Option<Vec<f64>> {
+        let system = self.caches.system.as_ref()?;
+        // The geometric part enters the operator (CG stops on a direction of non-positive
+        // curvature, and the caller factors instead).
+        let mut entries = self.free_entries(entries);
+        entries.extend(self.free_entries(geometric));
+        let (preconditioner, changes) = self.nearest_factor(&entries)?;
         if changes > PCG_LOW_RANK {
             return None;
         }
         let apply = self.contact_operator(&entries);
-        let preconditioner = nearest.map_or(&system.cholesky, |f| &f.cholesky);
         let (mut x, residual) = conjugate_gradients(
             &apply,
             &|r| preconditioner.solve_in_place(r),

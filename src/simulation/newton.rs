@@ -12,6 +12,7 @@ use nalgebra::SVector;
 
 use super::contact_terms::{ContactTerms, RankOne, TermsInput};
 use super::line_search::{free_dot, LineSearch, Verdict};
+use super::linear_solve::woodbury;
 use super::observe::{IterationInfo, Recorder};
 use super::{body_of, end_positions, Simulation};
 use crate::assembly::{self, KernelFields};
@@ -167,8 +168,9 @@ const SECANT_UNTIL: f64 = 1e-1;
 const MAX_INVERSION_BACKTRACKS: usize = 20;
 
 /// Most rank-one terms (slipping Coulomb contacts, held normal velocities on a turning
-/// normal) that enter a Newton solve (one extra symmetric solve each); beyond, Newton goes on
-/// without them (quasi-Newton).
+/// normal) that enter a Newton solve (about two GMRES iterations each, or one extra symmetric
+/// solve each where GMRES falls back to [`woodbury`]); beyond, Newton goes on without them
+/// (quasi-Newton).
 const MAX_COUPLED: usize = 64;
 
 /// Whether the coupled solve is on for every method. Implicit projection always uses it
@@ -181,10 +183,6 @@ const MAX_COUPLED: usize = 64;
 /// energy error is 2.98e-2 (bound 2e-2). (The bit-for-bit retry it once broke was a stale
 /// iteration matrix, fixed: `advance_once` syncs the cached factorisations first.)
 const COUPLED_SOLVE: bool = false;
-
-/// A solve with the symmetric part of the iteration matrix: right-hand side and residual target
-/// in, solution out.
-type SymmetricSolve<'a> = dyn FnMut(&[f64], f64) -> Result<Vec<f64>> + 'a;
 
 /// Why a step's Newton iteration stopped short of its tolerance (for the message).
 #[derive(Clone, Copy)]
@@ -219,58 +217,6 @@ impl Stall {
             ),
         }
     }
-}
-
-/// Solves `(S + sum u v^T) x = b`, `S` the symmetric part of the iteration matrix (solved by
-/// `solve`, to a residual target) and `u v^T` the non-symmetric rank-one terms of the tangent
-/// (Coulomb slip's threshold coupled to the gap; a held normal velocity whose normal turns), by
-/// the Sherman-Morrison-Woodbury formula: `x = x0 - Z (I + V^T Z)^-1 V^T x0`, `x0 = S^-1 b`,
-/// `Z = S^-1 U`. The Cholesky factorisations only ever see `S`. Prescribed unknowns take no
-/// part. A singular capacitance matrix leaves `x0` (Newton goes on without the coupling).
-fn woodbury(
-    solve: &mut SymmetricSolve<'_>,
-    coupling: &[RankOne],
-    prescribed: &[Option<f64>],
-    b: &[f64],
-    target: f64,
-) -> Result<Vec<f64>> {
-    let ndof = b.len();
-    let mut x = solve(b, target)?;
-    let m = coupling.len();
-    if m == 0 {
-        return Ok(x);
-    }
-    let mut z = Vec::with_capacity(m);
-    for (u, _) in coupling {
-        let mut rhs = vec![0.0; ndof];
-        for &(i, a) in u {
-            if prescribed[i].is_none() {
-                rhs[i] += a;
-            }
-        }
-        let norm = rhs.iter().map(|r| r * r).sum::<f64>().sqrt();
-        z.push(solve(&rhs, 1e-10 * norm)?);
-    }
-    let mut g = nalgebra::DMatrix::<f64>::identity(m, m);
-    let mut r = nalgebra::DVector::<f64>::zeros(m);
-    for (k, (_, v)) in coupling.iter().enumerate() {
-        for &(i, c) in v {
-            if prescribed[i].is_none() {
-                r[k] += c * x[i];
-                for (l, zl) in z.iter().enumerate() {
-                    g[(k, l)] += c * zl[i];
-                }
-            }
-        }
-    }
-    if let Some(y) = g.lu().solve(&r) {
-        for (l, zl) in z.iter().enumerate() {
-            for i in 0..ndof {
-                x[i] -= zl[i] * y[l];
-            }
-        }
-    }
-    Ok(x)
 }
 
 /// What a step starts from.
@@ -341,20 +287,27 @@ where
     }
 
     /// A solve with the symmetric contact iteration matrix `A0 + entries + geometric`: the
-    /// nearest factorisation with conjugate gradients, or a new factorisation.
+    /// nearest factorisation with conjugate gradients, or a new factorisation. Where the
+    /// geometric part makes the matrix indefinite, the solve is without it and `geometric`
+    /// is emptied, so that the iteration's other solves (the coupled terms' columns, one each)
+    /// use the same matrix instead of each failing a factorisation with it first.
     fn symmetric_solve(
         &mut self,
         entries: &[(usize, usize, f64)],
-        geometric: &[(usize, usize, f64)],
+        geometric: &mut &[(usize, usize, f64)],
         b: &[f64],
         target: f64,
         h: f64,
         step: usize,
     ) -> Result<Vec<f64>> {
-        match self.preconditioned_solve(entries, geometric, b, target) {
-            Some(x) => Ok(x),
-            None => self.factor_contact(entries, geometric, b, target, h, step),
+        if let Some(x) = self.preconditioned_solve(entries, geometric, b, target) {
+            return Ok(x);
         }
+        let (x, kept) = self.factor_contact(entries, geometric, b, target, h, step)?;
+        if !kept {
+            *geometric = &[];
+        }
+        Ok(x)
     }
 
     /// Where a step that does not converge is stuck, for its message: the free unknown with
@@ -922,15 +875,31 @@ where
                 self.solve_contact_free(&mut increment);
             } else {
                 let prescribed = self.prescribed.clone();
-                increment = woodbury(
-                    &mut |r, target| {
-                        self.symmetric_solve(&terms.entries, &terms.geometric, r, target, h, step)
-                    },
-                    coupling,
-                    &prescribed,
-                    &increment,
-                    target,
-                )?;
+                let mut geometric: &[(usize, usize, f64)] = &terms.geometric;
+                let coupled = if coupling.is_empty() {
+                    None
+                } else {
+                    self.coupled_solve(
+                        &terms.entries,
+                        &mut geometric,
+                        coupling,
+                        &increment,
+                        target,
+                        step,
+                    )?
+                };
+                increment = match coupled {
+                    Some(x) => x,
+                    None => woodbury(
+                        &mut |r, target| {
+                            self.symmetric_solve(&terms.entries, &mut geometric, r, target, h, step)
+                        },
+                        coupling,
+                        &prescribed,
+                        &increment,
+                        target,
+                    )?,
+                };
             }
             if contact_in_newton && globalized && coupling.is_empty() {
                 for (d, p) in increment.iter_mut().zip(&self.prescribed) {

@@ -135,7 +135,7 @@ where
             let target = 1e-12 * norm;
             elastic = match self.preconditioned_solve(&entries, &[], &rhs, target) {
                 Some(x) => x,
-                None => self.factor_contact(&entries, &[], &rhs, target, h, step)?,
+                None => self.factor_contact(&entries, &[], &rhs, target, h, step)?.0,
             };
             for ((g, gap, rho), m) in rows.iter().zip(multipliers.iter_mut()) {
                 let moved: f64 = g.iter().map(|&(i, a)| a * elastic[i]).sum();

@@ -12,6 +12,7 @@
 //! stay sequential: faer's threaded solve splits the depth of a matrix-vector product among the
 //! threads and adds their partial sums, so its result changes with the thread count.
 
+pub(crate) mod krylov;
 mod ordering;
 
 pub use ordering::FillOrdering;
