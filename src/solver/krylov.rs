@@ -3,6 +3,22 @@
 //! rank-one terms. Both are preconditioned by a sparse Cholesky factorisation of a nearby
 //! matrix (`simulation::linear_solve` chooses it).
 
+fn dot(a: &[f64], b: &[f64]) -> f64 {
+    a.iter().zip(b).map(|(x, y)| x * y).sum()
+}
+
+/// The residual norm a solve stops at: `target`, never below 1e-10 |b|; `None` when b = 0
+/// (x = 0 solves it exactly).
+fn stopping_norm(b: &[f64], target: f64) -> Option<f64> {
+    let b_norm = dot(b, b).sqrt();
+    (b_norm != 0.0).then(|| target.max(1e-10 * b_norm))
+}
+
+/// `b - apply(x)`.
+fn residual(apply: &dyn Fn(&[f64]) -> Vec<f64>, b: &[f64], x: &[f64]) -> Vec<f64> {
+    b.iter().zip(apply(x)).map(|(b, a)| b - a).collect()
+}
+
 /// Preconditioned conjugate gradients on `apply(x) = b` until the residual norm is at most
 /// `target` (never below 1e-10 |b|): the solution and its residual
 /// `b - apply(x)`; `None` if that takes more than `max` iterations.
@@ -14,16 +30,12 @@ pub(crate) fn conjugate_gradients(
     max: usize,
 ) -> Option<(Vec<f64>, Vec<f64>)> {
     let n = b.len();
-    let dot = |a: &[f64], b: &[f64]| a.iter().zip(b).map(|(x, y)| x * y).sum::<f64>();
-    let b_norm = dot(b, b).sqrt();
-    if b_norm == 0.0 {
+    let Some(target) = stopping_norm(b, target) else {
         return Some((vec![0.0; n], vec![0.0; n]));
-    }
-    let target = target.max(1e-10 * b_norm);
+    };
     let mut x = b.to_vec();
     precondition(&mut x);
-    let ax = apply(&x);
-    let mut r: Vec<f64> = b.iter().zip(&ax).map(|(b, a)| b - a).collect();
+    let mut r = residual(apply, b, &x);
     let mut z = r.clone();
     precondition(&mut z);
     let mut p = z.clone();
@@ -70,15 +82,11 @@ pub(crate) fn flexible_gmres(
     max: usize,
 ) -> Option<(Vec<f64>, Vec<f64>)> {
     let n = b.len();
-    let dot = |a: &[f64], b: &[f64]| a.iter().zip(b).map(|(x, y)| x * y).sum::<f64>();
-    let b_norm = dot(b, b).sqrt();
-    if b_norm == 0.0 {
+    let Some(target) = stopping_norm(b, target) else {
         return Some((vec![0.0; n], vec![0.0; n]));
-    }
-    let target = target.max(1e-10 * b_norm);
+    };
     let mut x = start;
-    let ax = apply(&x);
-    let mut r: Vec<f64> = b.iter().zip(&ax).map(|(b, a)| b - a).collect();
+    let r = residual(apply, b, &x);
     let beta = dot(&r, &r).sqrt();
     if beta <= target {
         return Some((x, r));
@@ -143,10 +151,7 @@ pub(crate) fn flexible_gmres(
             *xi += yl * zi;
         }
     }
-    let ax = apply(&x);
-    for ((ri, bi), ai) in r.iter_mut().zip(b).zip(&ax) {
-        *ri = bi - ai;
-    }
+    let r = residual(apply, b, &x);
     (dot(&r, &r).sqrt() <= target).then_some((x, r))
 }
 
