@@ -693,6 +693,30 @@ where
         Some((nearest.map_or(&system.cholesky, |f| &f.cholesky), changes))
     }
 
+    /// A solve with the symmetric contact iteration matrix `A0 + entries + geometric`: the
+    /// nearest factorisation with conjugate gradients, or a new factorisation. Where the
+    /// geometric part makes the matrix indefinite, the solve is without it and `geometric`
+    /// is emptied, so that the iteration's other solves (the coupled terms' columns, one each)
+    /// use the same matrix instead of each failing a factorisation with it first.
+    pub(super) fn symmetric_solve(
+        &mut self,
+        entries: &[(usize, usize, f64)],
+        geometric: &mut &[(usize, usize, f64)],
+        b: &[f64],
+        target: f64,
+        h: f64,
+        step: usize,
+    ) -> Result<Vec<f64>> {
+        if let Some(x) = self.preconditioned_solve(entries, geometric, b, target) {
+            return Ok(x);
+        }
+        let (x, kept) = self.factor_contact(entries, geometric, b, target, h, step)?;
+        if !kept {
+            *geometric = &[];
+        }
+        Ok(x)
+    }
+
     /// Solves `(A0 + K_c + sum u v^T) x = b`, the iteration matrix with the non-symmetric
     /// rank-one terms `coupling` (prescribed unknowns take no part), to a residual norm of
     /// `target` by flexible GMRES preconditioned with the nearest factorisation, factored
@@ -717,16 +741,7 @@ where
         // The solve with the symmetric part first, as the start: it factors where the
         // nearest factorisation is too far, and decides on the geometric part as a solve
         // without the coupling would.
-        let start = match self.preconditioned_solve(entries, geometric, b, target) {
-            Some(x) => x,
-            None => {
-                let (x, kept) = self.factor_contact(entries, geometric, b, target, h, step)?;
-                if !kept {
-                    *geometric = &[];
-                }
-                x
-            }
-        };
+        let start = self.symmetric_solve(entries, geometric, b, target, h, step)?;
         let mut all = self.free_entries(entries);
         all.extend(self.free_entries(geometric));
         let Some((preconditioner, changes)) = self.nearest_factor(&all) else {

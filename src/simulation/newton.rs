@@ -286,30 +286,6 @@ where
                 .any(|o| o.friction.is_some_and(|f| f != FrictionLaw::Frictionless))
     }
 
-    /// A solve with the symmetric contact iteration matrix `A0 + entries + geometric`: the
-    /// nearest factorisation with conjugate gradients, or a new factorisation. Where the
-    /// geometric part makes the matrix indefinite, the solve is without it and `geometric`
-    /// is emptied, so that the iteration's other solves (the coupled terms' columns, one each)
-    /// use the same matrix instead of each failing a factorisation with it first.
-    fn symmetric_solve(
-        &mut self,
-        entries: &[(usize, usize, f64)],
-        geometric: &mut &[(usize, usize, f64)],
-        b: &[f64],
-        target: f64,
-        h: f64,
-        step: usize,
-    ) -> Result<Vec<f64>> {
-        if let Some(x) = self.preconditioned_solve(entries, geometric, b, target) {
-            return Ok(x);
-        }
-        let (x, kept) = self.factor_contact(entries, geometric, b, target, h, step)?;
-        if !kept {
-            *geometric = &[];
-        }
-        Ok(x)
-    }
-
     /// Where a step that does not converge is stuck, for its message: the free unknown with
     /// the largest residual (its node, body and position at the step's start, `u0`), whether
     /// that node is a contact point (its master, gap and normal force), and how many pairs
