@@ -1,7 +1,8 @@
 //! Prints the cost of contact: a 3D box falls onto a rigid plane with the soft way; compares
 //! the time of contact-free steps with steps in contact (median and mean), and the iterations.
 //!
-//! Run: `cargo run --release --example contact_perf [-- SCENE [CELLS_PER_EDGE]]` with SCENE
+//! Run: `cargo run --release --example contact_perf [-- SCENE [CELLS_PER_EDGE] [--steps]]`
+//! (`--steps`: a line per step, with its Newton iterations and factorisations) with SCENE
 //! * `hex` (default): a 1 m Hex8 cube (20 cells per edge), E = 1e7 Pa, hitting at 1 m/s,
 //!   zeta = 1e10 Pa/m, h = 1e-3 s;
 //! * `peer`: the peer-figures cube (0.2 m, E = 1e5 Pa, nu = 0.3, rho = 1000 kg/m^3, 16 cubes
@@ -72,6 +73,9 @@ fn main() -> Result<()> {
         })
         .build()?;
     let (mut free, mut contact, mut iterations) = (Vec::new(), Vec::new(), Vec::new());
+    // Factorisations in contact-free and in contact steps.
+    let mut factorisations = [0, 0];
+    let per_step = std::env::args().any(|a| a == "--steps");
     let run = Instant::now();
     let t = Instant::now();
     sim.step()?; // the one-time analysis and factorisation
@@ -81,6 +85,13 @@ fn main() -> Result<()> {
         let t = Instant::now();
         let r = sim.step()?;
         let dt = t.elapsed().as_secs_f64();
+        if per_step {
+            println!(
+                "step {}: {dt:.3} s, {} Newton iterations, {} active contacts, {} factorisations",
+                r.step, r.iterations, r.active_contacts, r.factorisations
+            );
+        }
+        factorisations[usize::from(r.active_contacts > 0)] += r.factorisations;
         if r.active_contacts > 0 {
             contact.push(dt);
             iterations.push(r.iterations as f64);
@@ -95,16 +106,18 @@ fn main() -> Result<()> {
         sim.node_count() * 3,
     );
     println!(
-        "contact-free steps: {} (median {f:.4} s, mean {:.4} s)",
+        "contact-free steps: {} (median {f:.4} s, mean {:.4} s; {} factorisations)",
         free.len(),
-        mean(&free)
+        mean(&free),
+        factorisations[0]
     );
     println!(
-        "contact steps: {} (median {c:.4} s, mean {:.4} s; Newton iterations median {:.1}, mean {:.2})",
+        "contact steps: {} (median {c:.4} s, mean {:.4} s; Newton iterations median {:.1}, mean {:.2}; {} factorisations)",
         contact.len(),
         mean(&contact),
         median(iterations.clone()),
-        mean(&iterations)
+        mean(&iterations),
+        factorisations[1]
     );
     println!(
         "ratio contact / contact-free: median {:.2}, mean {:.2}",

@@ -497,6 +497,7 @@ both_dims!(
     two_bars_soft_way,
     two_bars_implicit_projection,
     a_resting_block_keeps_its_held_set,
+    a_bouncing_block_converges_in_one_iteration_per_steady_contact_step,
     coulomb_incline,
     tresca_incline,
     viscoplastic_incline,
@@ -752,5 +753,72 @@ fn ring_drop_explicit_projection_energy_account() {
         e.dissipated < 0.0 && -e.dissipated < 0.05 * sim.energy_reference(),
         "dissipated {}",
         e.dissipated
+    );
+}
+
+/// The soft way's first Newton direction keeps the penalty of the points closed when the last
+/// step ended (`OuterVariables::predicted` in the code): a block bouncing on its contact
+/// face, whose bottom moves up in some steps, used to be predicted open there (`v1 = v0`), its
+/// first direction fell through the floor, and Newton backtracked and came back in 2 to 5
+/// iterations (and a factorisation where the predictor released part of the face). Every step
+/// whose contact set is the previous step's now converges in one iteration.
+fn a_bouncing_block_converges_in_one_iteration_per_steady_contact_step<const D: usize>()
+where
+    Dim<D>: SpatialDim<D>,
+{
+    let mut g = [0.0; 3];
+    g[D - 1] = -9.81;
+    let mut down = [0.0; 3];
+    down[D - 1] = -1.0;
+    let mut point = [0.0; 3];
+    point[D - 1] = -2e-3;
+    let mut normal = [0.0; 3];
+    normal[D - 1] = 1.0;
+    let mut sim = Simulation::<D>::builder()
+        .time_step(1e-3)
+        .gravity(vec_d(g))
+        .body(
+            Body::new(
+                "block",
+                block([0.2, 0.1, 0.2], [4, 2, 4], false),
+                Material::LinearElastic(LinearElastic::new(1e5, 0.3, 1000.0).unwrap()),
+            )
+            .with_velocity(vec_d(down)),
+        )
+        .obstacle(Obstacle::new(
+            "floor",
+            ObstacleShape::Halfspace {
+                point: vec_d(point),
+                normal: vec_d(normal),
+            },
+        ))
+        .contact(ContactSettings {
+            method: ContactMethod::SoftWay,
+            penalty: 1e8,
+            ..ContactSettings::default()
+        })
+        .build()
+        .unwrap();
+    // (step, iterations) of the steps whose contact count is the previous step's.
+    let (mut previous, mut steady) = (0, Vec::new());
+    for _ in 0..60 {
+        let r = sim.step().unwrap();
+        if r.active_contacts > 0 && r.active_contacts == previous {
+            steady.push((r.step, r.iterations, r.factorisations));
+        }
+        previous = r.active_contacts;
+    }
+    // Measured: 14 such steps in 2D and 37 in 3D; before, 1 and 3 of them took 2 or 3
+    // iterations. None factors: the kept factorisation has the same contact set.
+    assert!(
+        steady.len() >= 10,
+        "{D}D: {} steady contact steps",
+        steady.len()
+    );
+    let slow: Vec<_> = steady.iter().filter(|(_, i, f)| *i > 1 || *f > 0).collect();
+    assert!(
+        slow.is_empty(),
+        "{D}D: steady contact steps (step, iterations, factorisations) with more than one \
+         iteration or a factorisation: {slow:?}"
     );
 }

@@ -106,10 +106,22 @@ where
                 bits(interrupted.state()),
                 "{method:?} step {step}: the retried step differs"
             );
-            assert_eq!(format!("{a:?}"), format!("{b:?}"));
+            assert_eq!(without_factorisations(&a), without_factorisations(&b));
         }
         assert!(touched, "{method:?}: the block never touched the floor");
     }
+}
+
+/// A step report without its factorisation count: a rebuilt or retried simulation factors
+/// again the cached matrices its state names (with the same bits), which the count shows.
+fn without_factorisations(report: &StepReport) -> String {
+    format!(
+        "{:?}",
+        StepReport {
+            factorisations: 0,
+            ..report.clone()
+        }
+    )
 }
 
 fn rebuilt_from_model_and_state_continues_bit_for_bit<const D: usize>()
@@ -142,7 +154,7 @@ where
                 bits(rebuilt.state()),
                 "{method:?} step {step} after the rebuild"
             );
-            assert_eq!(format!("{a:?}"), format!("{b:?}"));
+            assert_eq!(without_factorisations(&a), without_factorisations(&b));
         }
     }
 }

@@ -221,6 +221,44 @@ where
     }
 }
 
+/// Each step reports the factorisations it made (`StepReport::factorisations`): none while
+/// the step size stays, and the new size's (with the state's re-expression for it, which
+/// factors `M + k K`) when it changes.
+fn a_new_step_size_reports_its_factorisations<const D: usize>()
+where
+    softway::dim::Dim<D>: softway::dim::SpatialDim<D>,
+{
+    use softway::material::{LinearElastic, Material};
+    use softway::simulation::Body;
+    let mesh = common::block::<D>([0.2, 0.2, 0.2], [2, 2, 2], false);
+    let material = Material::LinearElastic(LinearElastic::new(1e6, 0.3, 1000.0).unwrap());
+    let body =
+        Body::new("block", mesh, material).with_velocity(common::vec_d::<D>([1.0, -0.5, 0.25]));
+    let mut sim = Simulation::<D>::builder()
+        .time_step(1e-2)
+        .body(body)
+        .build()
+        .unwrap();
+    sim.step().unwrap();
+    let mut counts = vec![sim.step().unwrap().factorisations];
+    counts.push(sim.advance(5e-3, &mut NullRecorder).unwrap().factorisations);
+    counts.push(sim.advance(5e-3, &mut NullRecorder).unwrap().factorisations);
+    counts.push(sim.step().unwrap().factorisations);
+    counts.push(sim.step().unwrap().factorisations);
+    let expected = [0, 2, 0, 2, 0];
+    assert_eq!(counts, expected, "{D}D: factorisations per step");
+}
+
+#[test]
+fn a_new_step_size_reports_its_factorisations_d2() {
+    a_new_step_size_reports_its_factorisations::<2>();
+}
+
+#[test]
+fn a_new_step_size_reports_its_factorisations_d3() {
+    a_new_step_size_reports_its_factorisations::<3>();
+}
+
 #[test]
 fn a_rigid_flight_is_left_alone_d2() {
     a_rigid_flight_is_left_alone::<2>();

@@ -24,6 +24,10 @@ pub(super) type RankOne = (Vec<(usize, f64)>, Vec<(usize, f64)>);
 pub(super) struct ContactTerms<const D: usize> {
     /// Contact forces on the nodes (N; flat, D per node).
     pub forces: Vec<f64>,
+    /// The forces (N; flat, D per node, empty when none) that the closed branch of pairs
+    /// predicted closed adds where the law found them open ([`NormalLaw::predicted_force`]):
+    /// they enter the first Newton direction only, not the residual.
+    pub predicted_forces: Vec<f64>,
     /// Tangent entries `d(-forces)/dv1` (lower triangle).
     pub entries: Vec<(usize, usize, f64)>,
     /// The geometric part of the tangent (variation of the normal and of the closest point):
@@ -359,6 +363,15 @@ where
             for &(n, c) in &nodes {
                 for k in 0..D {
                     terms.forces[n * D + k] += c * force[k];
+                }
+            }
+            if normal_law.predicted_force != 0.0 {
+                terms.predicted_forces.resize(ndof, 0.0);
+                for &(n, c) in &nodes {
+                    for k in 0..D {
+                        terms.predicted_forces[n * D + k] +=
+                            c * normal[k] * normal_law.predicted_force;
+                    }
                 }
             }
             // Tangent: d(-force)/dv1 on every pair of involved nodes.

@@ -215,7 +215,7 @@ where
         };
         // The general path factors its own matrix every iteration and needs only this one's
         // analysis: a flow law at rest with no mass (rho = 0) has nothing to factor here.
-        let factored = cholesky.factor(&matrix, self.state.step + 1);
+        let factored = self.counted(|| cholesky.factor(&matrix, self.state.step + 1));
         if !self.general_path {
             factored?;
         }
@@ -270,6 +270,14 @@ where
         a
     }
 
+    /// Runs a numeric factorisation, counted for the step's report
+    /// ([`StepReport::factorisations`](super::StepReport::factorisations)).
+    fn counted<T>(&self, factor: impl FnOnce() -> T) -> T {
+        self.step_factorisations
+            .fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+        factor()
+    }
+
     fn system(&self) -> &IterationSystem {
         self.caches.system.as_ref().expect("ensure_system ran")
     }
@@ -294,7 +302,7 @@ where
             Some(s) => s.cholesky,
             None => SparseCholesky::analyse_with(&matrix, self.model.settings.ordering, D)?,
         };
-        let factored = cholesky.factor(&matrix, self.state.step + 1);
+        let factored = self.counted(|| cholesky.factor(&matrix, self.state.step + 1));
         if factored.is_ok() {
             cholesky.solve_in_place(rhs);
         }
@@ -474,7 +482,7 @@ where
         }
         let matrix = self.contact_matrix(&base, &self.free_entries(entries))?;
         let mut cholesky = self.system().cholesky.unfactored_copy();
-        cholesky.factor_any(&matrix, step)?;
+        self.counted(|| cholesky.factor_any(&matrix, step))?;
         Ok(cholesky)
     }
 
@@ -548,9 +556,9 @@ where
             let mut cholesky = self.analysis_for(&matrix)?;
             let step = self.state.step + 1;
             if record.single_precision {
-                cholesky.factor_single(&matrix, step)?;
+                self.counted(|| cholesky.factor_single(&matrix, step))?;
             } else {
-                cholesky.factor(&matrix, step)?;
+                self.counted(|| cholesky.factor(&matrix, step))?;
             }
             let diagonal = self.free_contact_diagonal(&record.entries);
             self.caches.contact_factors.push(ContactFactor {
@@ -633,7 +641,9 @@ where
             let matrix = self.contact_matrix(&self.system().matrix, entries)?;
             let mut cholesky = self.analysis_for(&matrix)?;
             if !self.state.contact_memory.double_precision_only
-                && cholesky.factor_single(&matrix, step).is_ok()
+                && self
+                    .counted(|| cholesky.factor_single(&matrix, step))
+                    .is_ok()
             {
                 let refined = conjugate_gradients(
                     &self.contact_operator(entries),
@@ -650,7 +660,7 @@ where
                 // Too ill-conditioned for single precision: stay in double from now on.
                 self.state.contact_memory.double_precision_only = true;
             }
-            match cholesky.factor(&matrix, step) {
+            match self.counted(|| cholesky.factor(&matrix, step)) {
                 Ok(()) => {
                     let mut x = b.to_vec();
                     cholesky.solve_in_place(&mut x);

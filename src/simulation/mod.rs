@@ -139,6 +139,11 @@ pub struct StepReport {
     /// methods.
     #[serde(default)]
     pub contact_cycles: usize,
+    /// Numeric factorisations of an iteration matrix in the step (contact-free or with
+    /// contact, over every attempt, the failed ones included): what a slow step usually spent
+    /// its time on. 0 in reports from before it.
+    #[serde(default)]
+    pub factorisations: usize,
 }
 
 /// A simulation of deformable bodies in D dimensions: a [`Model`], a [`State`], what is
@@ -171,6 +176,9 @@ where
     /// Active sets that came back in the step under way, over all its attempts (cut ones
     /// included): an output of the step, not state.
     step_cycles: usize,
+    /// Numeric factorisations since the step under way began (an output of the step, not
+    /// state; atomic because `&self` solves factor too).
+    step_factorisations: std::sync::atomic::AtomicUsize,
     /// The poses the host asked obstacles to reach at the end of the next step
     /// ([`Simulation::set_obstacle_next_pose`]): input for one step, not state.
     next_poses: Vec<(ObstacleId, SVector<f64, D>, SMatrix<f64, D, D>)>,
@@ -511,6 +519,7 @@ where
             general_path,
             contact_log: Default::default(),
             step_cycles: 0,
+            step_factorisations: Default::default(),
             next_poses: Vec::new(),
             globalized_newton: false,
             sweeps: Vec::new(),

@@ -505,6 +505,7 @@ mod tests {
             held_tension: 0.0,
             compression: 0.0,
             contact_cycles,
+            factorisations: 0,
         }
     }
 

@@ -814,6 +814,13 @@ where
                 .zip(&self.prescribed)
                 .map(|(r, p)| if p.is_some() { 0.0 } else { -r })
                 .collect();
+            // The closed branch of the pairs predicted closed, in the first direction only.
+            for (i, f) in terms.predicted_forces.iter().enumerate() {
+                if self.prescribed[i].is_none() {
+                    increment[i] += f;
+                }
+            }
+            vars.predicted.clear();
             // Linear solves go only as far as Newton needs: a tenth of its tolerance.
             let target = 0.1 * tolerance * scale;
             // The non-symmetric rank-one terms of the tangent, when the method solves with them.

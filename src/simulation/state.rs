@@ -72,8 +72,10 @@ pub struct State {
     /// when the contact opens.
     pub friction_anchors: Vec<(usize, MasterId, Vec<f64>)>,
     /// Implicit projection: the points held at the end of the last step (slave node, master),
-    /// the start of the next step's active set. Empty in states from before it (the active
-    /// set is then found from the predicted penetrations alone).
+    /// the start of the next step's active set; the soft way: the points closed (loaded) at
+    /// the end of the last step, whose penalty the next step's first Newton direction keeps.
+    /// Empty in states from before it (the active set is then found from the predicted
+    /// penetrations alone).
     #[serde(default)]
     pub active_contacts: Vec<(usize, MasterId)>,
     /// The energy stability is measured against at t = 0 (J) (E(0)).

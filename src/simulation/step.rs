@@ -92,12 +92,14 @@ where
         let saved = self.state.clone();
         let saved_log = self.contact_log.clone();
         self.step_cycles = 0;
+        *self.step_factorisations.get_mut() = 0;
         self.sweeps.clear();
         match self.advance_cut(h, recorder, 0, true) {
             Ok(mut r) => {
                 self.next_poses.clear();
                 self.close_contact_log(&r.contact_forces);
                 r.contact_cycles = self.step_cycles;
+                r.factorisations = *self.step_factorisations.get_mut();
                 Ok(r)
             }
             Err(e) => {
@@ -656,7 +658,16 @@ where
             .iter()
             .filter_map(|p| p.anchor.map(|a| (p.key.0, p.key.1, a.as_slice().to_vec())))
             .collect();
-        state.active_contacts = vars.active.iter().copied().collect();
+        state.active_contacts = if method.keeps_closed_points() {
+            terms
+                .pairs
+                .iter()
+                .filter(|p| p.normal_force > 0.0)
+                .map(|p| p.key)
+                .collect()
+        } else {
+            vars.active.iter().copied().collect()
+        };
         if !method.carries_multipliers() {
             state.multipliers.clear();
         }
@@ -738,6 +749,7 @@ where
             held_tension,
             compression,
             contact_cycles: 0,
+            factorisations: 0,
         };
         recorder.step_end(self, &report);
         Ok(report)

@@ -746,7 +746,9 @@ fn a_scheme_outside_its_window_that_gains_energy_is_stopped() {
 /// on (stick and slip on the turning plate): the summary says so. (With the default 50 it cut
 /// its step 131 until a stalled Newton was retried with the line search before the cut; the
 /// gripper used here before cut its step 100 under implicit projection until the active set
-/// stopped cycling.)
+/// stopped cycling. 2 steps and 3 cuts before the soft way's first direction kept the points
+/// closed at the last step's end: the same steps to 1e-8 until step 115, then the bouncing on
+/// the turning plate takes another path, 732 iterations against 628.)
 #[test]
 fn step_cuts_are_a_warning() {
     let dir = tempdir();
@@ -772,7 +774,7 @@ fn step_cuts_are_a_warning() {
     assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
     assert!(
         warnings(&out).iter().any(|w| w
-            == "2 step(s) did not converge at full size and were cut (3 cut(s) in all), the \
+            == "6 step(s) did not converge at full size and were cut (7 cut(s) in all), the \
                 first at step 109 (t = 1.090000e-1 s); a smaller time_step avoids the cuts"),
         "{:?}",
         warnings(&out)

@@ -65,6 +65,7 @@ impl Method for ImplicitProjection {
             stiffness: rho,
             geometric_force: force,
             velocity_stiffness: if holds_velocity { rho } else { 0.0 },
+            predicted_force: 0.0,
         }
     }
 

@@ -43,6 +43,11 @@ pub(crate) struct OuterVariables {
     /// Implicit projection: active sets that came back since the caller last took the count
     /// (the step's monitor reads and resets it after every outer update).
     pub cycles: usize,
+    /// The soft way: the pairs closed when the last step ended. Newton's first direction
+    /// (from the predictor `v1 = v0`, which opens a resting point moving up) keeps their
+    /// penalty's closed branch, so that a contact the predictor lifts off is not dropped for
+    /// an iteration; cleared after that direction.
+    pub predicted: BTreeSet<ContactKey>,
     /// Whether [`Method::start`] ran in this step.
     pub started: bool,
     /// Augmented Lagrangian: each pair's penalty as a multiple of `zeta`, raised where an
@@ -89,6 +94,11 @@ pub(crate) struct NormalLaw {
     /// Hess(g) w1` per unit of the end positions, enters the tangent with this factor (a
     /// non-symmetric rank-one term). 0 where the force depends on the gap only.
     pub velocity_stiffness: f64,
+    /// The closed branch's force (N, a tension) of a pair the law finds open but that was
+    /// closed when the last step ended ([`OuterVariables::predicted`]): with `stiffness`, it
+    /// sets the first Newton direction as if the pair were still closed; it is not in the
+    /// residual (which keeps the law's zero). 0 elsewhere.
+    pub predicted_force: f64,
 }
 
 /// One pair's forces in an iteration, as the outer updates and the records see them.
@@ -174,9 +184,16 @@ pub(crate) trait Method: Sync {
     }
 
     /// Called once per step with the contacts predicted to penetrate at the first iteration
-    /// (end velocity = start velocity) and those held when the last step ended
+    /// (end velocity = start velocity) and those held or closed when the last step ended
     /// (`State::active_contacts`).
     fn start(&self, _vars: &mut OuterVariables, _starting: &[ContactKey]) {}
+
+    /// Whether the points closed when a step ends are kept (`State::active_contacts`) for the
+    /// next step's [`Method::start`] although the method has no active set (the soft way's
+    /// first direction, [`OuterVariables::predicted`]).
+    fn keeps_closed_points(&self) -> bool {
+        false
+    }
 
     /// The normal law of one pair.
     fn normal_law(

@@ -4,7 +4,7 @@
 //! Hessian, added by the step).
 
 use super::{Method, NormalInput, NormalLaw, OuterVariables};
-use crate::contact::{ContactSettings, PenaltyForce};
+use crate::contact::{ContactKey, ContactSettings, PenaltyForce};
 
 /// The soft way.
 pub(crate) struct SoftWay;
@@ -18,9 +18,20 @@ pub(crate) fn penalty_law(lambda: f64, input: &NormalInput, zeta: f64) -> Normal
             stiffness: 0.5 * input.time_step * zeta * input.area,
             geometric_force: p * input.area,
             velocity_stiffness: 0.0,
+            predicted_force: 0.0,
         }
     } else {
         NormalLaw::default()
+    }
+}
+
+/// The end-of-step penalty's closed branch where the gap is open: its stiffness, and its
+/// (tensile) force for the first Newton direction only ([`NormalLaw::predicted_force`]).
+fn predicted_penalty_law(input: &NormalInput, zeta: f64) -> NormalLaw {
+    NormalLaw {
+        stiffness: 0.5 * input.time_step * zeta * input.area,
+        predicted_force: -zeta * input.gap * input.area,
+        ..NormalLaw::default()
     }
 }
 
@@ -45,6 +56,7 @@ pub(crate) fn secant_penalty_law(input: &NormalInput, zeta: f64) -> NormalLaw {
         stiffness: (-dp_dg1).max(0.0) * 0.5 * input.time_step * input.area,
         geometric_force: p * input.area,
         velocity_stiffness: 0.0,
+        predicted_force: 0.0,
     }
 }
 
@@ -53,16 +65,31 @@ impl Method for SoftWay {
         true
     }
 
+    fn start(&self, vars: &mut OuterVariables, starting: &[ContactKey]) {
+        vars.predicted = starting.iter().copied().collect();
+    }
+
+    fn keeps_closed_points(&self) -> bool {
+        true
+    }
+
     fn normal_law(
         &self,
         input: &NormalInput,
-        _vars: &OuterVariables,
+        vars: &OuterVariables,
         settings: &ContactSettings,
     ) -> NormalLaw {
-        match settings.penalty_force {
+        let law = match settings.penalty_force {
             PenaltyForce::EndOfStep => penalty_law(0.0, input, settings.penalty),
             PenaltyForce::Secant => secant_penalty_law(input, settings.penalty),
+        };
+        if law.stiffness > 0.0 || !vars.predicted.contains(&input.key) {
+            return law;
         }
+        // Closed at the end of the last step, opened by the predictor: the first direction
+        // keeps the closed branch (a resting face moving up is not dropped for an iteration
+        // and caught again, with the factorisations and backtracking that costs).
+        predicted_penalty_law(input, settings.penalty)
     }
 
     fn stores_energy(&self) -> bool {
