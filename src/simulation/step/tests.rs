@@ -571,7 +571,18 @@ fn rebuilt_factorisations_leave_the_step_its_own_matrix() {
     let a = reference.step().unwrap();
     let b = rebuilt.step().unwrap();
     assert_eq!(rebuilt.caches.system.as_ref().unwrap().time_step, h);
-    assert_eq!(format!("{a:?}"), format!("{b:?}"));
+    // The rebuilt one factors the evicted matrix again (and the step's own after it).
+    assert!(
+        b.factorisations > a.factorisations,
+        "factorisations {} against {}",
+        b.factorisations,
+        a.factorisations
+    );
+    let same_count = StepReport {
+        factorisations: a.factorisations,
+        ..b
+    };
+    assert_eq!(format!("{a:?}"), format!("{same_count:?}"));
     assert_eq!(
         format!("{:?}", reference.state),
         format!("{:?}", rebuilt.state)
