@@ -45,7 +45,7 @@ RUNS = [
         "foundation::", "contact::", "step_size_changes::", "locking::", "gripper::", "damping::",
         "rolling::", "friction::slide::", "friction::stick::", "undamped_floor_reaction",
         "bundled_scenes::cantilever", "bundled_scenes::gmsh_plate", "bundled_scenes::thick_cylinder",
-        "a_stack_under_the_soft_way", "a_coulomb_stack_under", "a_spinning_body_comes_back_unstressed", "pendulum",
+        "a_stack_under_the_soft_way", "a_coulomb_stack_under", "a_tresca_stack_under", "a_spinning_body_comes_back_unstressed", "pendulum",
         "a_pre_stressed_spinning_ring",
         "threaded_factorisations_are_thread_independent", "_between_bodies",
     ]),

@@ -392,8 +392,43 @@ where
     assert!(penetration < deepest, "penetration {penetration}");
 }
 
+/// The stack with Tresca friction (300 Pa, about a third of a block's weight per area) on every
+/// contact: a law that reads only whether a point is closed, over patches between bodies
+/// whichever pass carries their load (`area_law_patch`).
+fn tresca_stack<const D: usize>(method: ContactMethod, deepest: f64)
+where
+    Dim<D>: SpatialDim<D>,
+{
+    let Stack {
+        penetration, error, ..
+    } = stack_with_friction::<D>(
+        method,
+        GapDisplacement::Configuration,
+        FrictionLaw::Tresca {
+            limit: 300.0,
+            regularization: 1e-4,
+        },
+    );
+    common::verify::record("stack", &format!("energy {D}D Tresca"), error);
+    assert!(error < 2e-2, "energy error {error}");
+    assert!(penetration < deepest, "penetration {penetration}");
+}
+
 mod d2 {
     use softway::contact::ContactMethod;
+
+    #[test]
+    fn a_tresca_stack_under_the_soft_way() {
+        super::tresca_stack::<2>(ContactMethod::SoftWay, 2e-3);
+    }
+    #[test]
+    fn a_tresca_stack_under_the_augmented_lagrangian() {
+        super::tresca_stack::<2>(ContactMethod::AugmentedLagrangian, 2e-3);
+    }
+    #[test]
+    fn a_tresca_stack_under_implicit_projection() {
+        super::tresca_stack::<2>(ContactMethod::ImplicitProjection, 2e-3);
+    }
 
     #[test]
     fn a_stack_under_implicit_projection() {

@@ -11,7 +11,7 @@ use super::newton::edge_pair;
 use super::observe::ContactRecord;
 use super::Simulation;
 use crate::contact::gap::{facet_gap, facet_gap_hessian, obstacle_gap_hessian};
-use crate::contact::methods::{Method, NormalInput, OuterVariables, PairOutcome};
+use crate::contact::methods::{Method, NormalInput, NormalLaw, OuterVariables, PairOutcome};
 use crate::contact::{ContactKey, ContactPair, FrictionLaw, Master, MasterId, Obstacle};
 use crate::dim::{Dim, Kinematics, SpatialDim};
 use crate::friction::return_map;
@@ -52,6 +52,29 @@ pub(super) struct ContactTerms<const D: usize> {
     /// the trapezoid increment `h (w0 + w1) / 2` the scheme books forces on (constraint
     /// forces' work is in `dissipation_rate`).
     pub normal_work_rate: f64,
+}
+
+/// A pair's geometry, kinematics and normal law: the normal phase of the contact terms.
+struct PairNormal<const D: usize> {
+    key: ContactKey,
+    /// The slave and the master's nodes with their weights in the relative velocity.
+    nodes: Vec<(usize, f64)>,
+    normal: SVector<f64, D>,
+    /// The eq 22 gap (m).
+    gap: f64,
+    /// An obstacle's surface velocity at the contact point (m/s).
+    master_velocity: SVector<f64, D>,
+    obstacle: Option<usize>,
+    master_point: SVector<f64, D>,
+    /// A master facet's nodes and weights.
+    facet_weights: Option<[(usize, f64); D]>,
+    /// The slave's contact area (m^2; half of it for each pass between deformable bodies).
+    area: f64,
+    /// Relative start and end velocities (m/s).
+    r0: SVector<f64, D>,
+    r1: SVector<f64, D>,
+    law_input: NormalInput,
+    law: NormalLaw,
 }
 
 /// What the contact terms of an iteration read besides the pairs.
@@ -170,7 +193,132 @@ where
         }
     }
 
-    /// Forces, tangent entries and outcomes of every detected pair.
+    /// The geometry, kinematics and normal law of a detected pair (the normal phase of
+    /// [`Self::contact_terms`]); `None` for a degenerate master facet.
+    fn pair_normal(
+        &self,
+        pair: &ContactPair<D>,
+        input: &TermsInput<'_, D>,
+    ) -> Option<PairNormal<D>> {
+        let h = input.time_step;
+        let x_gap = input.x_gap;
+        let s = pair.slave;
+        let surface = self.caches.detector.as_ref()?.surface();
+        // Master nodes with their weights, the normal and the gap.
+        let mut facet_weights = None;
+        let (key, nodes, normal, gap, master_velocity, obstacle, master_point) = match pair.master {
+            Master::Obstacle(k) => (
+                (s, MasterId::Obstacle(k)),
+                vec![(s, 1.0)],
+                pair.normal,
+                pair.gap,
+                // The surface's velocity where the point touches it.
+                self.surface_velocity(k, &input.obstacles_t1[k], &pair.point),
+                Some(k),
+                pair.point,
+            ),
+            Master::Facet(f) => {
+                let facet = surface.facets()[f];
+                let y: [SVector<f64, D>; D] = std::array::from_fn(|i| x_gap[facet[i]]);
+                let g = facet_gap::<D>(&x_gap[s], &y)?;
+                let mut nodes = vec![(s, 1.0)];
+                for i in 0..D {
+                    nodes.push((facet[i], -g.weights[i]));
+                }
+                facet_weights = Some(std::array::from_fn(|i| (facet[i], g.weights[i])));
+                (
+                    (s, MasterId::Body(surface.facet_body()[f])),
+                    nodes,
+                    g.normal,
+                    g.gap,
+                    SVector::zeros(),
+                    None,
+                    g.point,
+                )
+            }
+        };
+        let relative = |v: &[f64]| -> SVector<f64, D> {
+            let mut r = -master_velocity;
+            for &(n, c) in &nodes {
+                r += SVector::<f64, D>::from_column_slice(&v[n * D..n * D + D]) * c;
+            }
+            r
+        };
+        let mut area = Self::contact_area(&input.areas[s], &normal);
+        if obstacle.is_none() && input.method.symmetric_pairs() {
+            // Both passes act on a pair of deformable surfaces: half each.
+            area *= 0.5;
+        }
+        let (r0, r1) = (relative(input.v0), relative(input.v1));
+        let normal_velocity = normal.dot(&r1);
+        let law_input = NormalInput {
+            key,
+            gap,
+            start_gap: gap - 0.5 * h * normal.dot(&(r0 + r1)),
+            normal_velocity,
+            area,
+            time_step: h,
+            diagonal: (0..D)
+                .map(|k| input.diagonal[s * D + k])
+                .fold(0.0, f64::max),
+        };
+        let law = input
+            .method
+            .normal_law(&law_input, input.vars, &self.model.contact);
+        Some(PairNormal {
+            key,
+            nodes,
+            normal,
+            gap,
+            master_velocity,
+            obstacle,
+            master_point,
+            facet_weights,
+            area,
+            r0,
+            r1,
+            law_input,
+            law,
+        })
+    }
+
+    /// The slaves that an area law's friction (Tresca, viscoplastic) counts as inside the
+    /// contact patch although their own pair carries no load: the nodes of the master facets
+    /// of loaded pairs between deformable surfaces (active ones under implicit projection).
+    /// One pass often carries the load over a patch (the penalty methods' two passes at half
+    /// the area each: the multipliers or the penalty put it on one; implicit projection's
+    /// frictionless edge pairs at a perimeter), and a law that reads only whether a point is
+    /// closed would then act on part of the area. Empty for the other laws.
+    fn area_law_patch<'p>(
+        &self,
+        normals: impl Iterator<Item = &'p PairNormal<D>>,
+        input: &TermsInput<'_, D>,
+    ) -> Vec<bool> {
+        let area_law =
+            |law: FrictionLaw| law != FrictionLaw::Frictionless && !law.follows_normal_force();
+        if !area_law(self.friction_law(None)) {
+            return Vec::new();
+        }
+        // Under implicit projection a point is held while it is active (see `closed` below).
+        let loaded = |p: &PairNormal<D>| {
+            if input.method.lagged_friction_threshold() {
+                p.law.stiffness > 0.0
+            } else {
+                p.law.force > 0.0
+            }
+        };
+        let mut patch = vec![false; input.x_gap.len()];
+        for p in normals.filter(|p| loaded(p)) {
+            for &(node, _) in p.facet_weights.iter().flatten() {
+                patch[node] = true;
+            }
+        }
+        patch
+    }
+
+    /// Forces, tangent entries and outcomes of every detected pair: the normal phase first
+    /// ([`Self::pair_normal`]), then friction and assembly, which read the whole contact
+    /// patch ([`Self::area_law_patch`]).
     pub(super) fn contact_terms(
         &self,
         pairs: &[ContactPair<D>],
@@ -189,77 +337,31 @@ where
             return terms;
         };
         let surface = detector.surface();
-        for pair in pairs {
+        let normals: Vec<(&ContactPair<D>, PairNormal<D>)> = pairs
+            .iter()
+            .filter_map(|pair| Some((pair, self.pair_normal(pair, input)?)))
+            .collect();
+        let patch = self.area_law_patch(normals.iter().map(|(_, p)| p), input);
+        for (pair, p) in &normals {
             let s = pair.slave;
-
-            // Master nodes with their weights, the normal and the gap.
-            let mut facet_weights = None;
-            let (key, nodes, normal, gap, master_velocity, obstacle, master_point) =
-                match pair.master {
-                    Master::Obstacle(k) => (
-                        (s, MasterId::Obstacle(k)),
-                        vec![(s, 1.0)],
-                        pair.normal,
-                        pair.gap,
-                        // The surface's velocity where the point touches it.
-                        self.surface_velocity(k, &input.obstacles_t1[k], &pair.point),
-                        Some(k),
-                        pair.point,
-                    ),
-                    Master::Facet(f) => {
-                        let facet = surface.facets()[f];
-                        let y: [SVector<f64, D>; D] = std::array::from_fn(|i| x_gap[facet[i]]);
-                        let Some(g) = facet_gap::<D>(&x_gap[s], &y) else {
-                            continue;
-                        };
-                        let mut nodes = vec![(s, 1.0)];
-                        for i in 0..D {
-                            nodes.push((facet[i], -g.weights[i]));
-                        }
-                        facet_weights = Some(std::array::from_fn(|i| (facet[i], g.weights[i])));
-                        (
-                            (s, MasterId::Body(surface.facet_body()[f])),
-                            nodes,
-                            g.normal,
-                            g.gap,
-                            SVector::zeros(),
-                            None,
-                            g.point,
-                        )
-                    }
-                };
-            let relative = |v: &[f64]| -> SVector<f64, D> {
-                let mut r = -master_velocity;
-                for &(n, c) in &nodes {
-                    r += node_v(v, n) * c;
-                }
-                r
-            };
-            let mut area = Self::contact_area(&input.areas[s], &normal);
-            if obstacle.is_none() && input.method.symmetric_pairs() {
-                // Both passes act on a pair of deformable surfaces: half each.
-                area *= 0.5;
-            }
-            let (r0, r1) = (relative(input.v0), relative(input.v1));
+            let PairNormal {
+                key,
+                ref nodes,
+                normal,
+                gap,
+                master_velocity,
+                obstacle,
+                master_point,
+                facet_weights,
+                area,
+                r0,
+                r1,
+                law_input,
+                law: normal_law,
+            } = *p;
             let projector = SMatrix::<f64, D, D>::identity() - normal * normal.transpose();
             let slip = projector * (r0 + r1) * 0.5;
-            let normal_velocity = normal.dot(&r1);
-
-            // Normal force and the stiffness of its law.
-            let law_input = NormalInput {
-                key,
-                gap,
-                start_gap: gap - 0.5 * h * normal.dot(&(r0 + r1)),
-                normal_velocity,
-                area,
-                time_step: h,
-                diagonal: (0..D)
-                    .map(|k| input.diagonal[s * D + k])
-                    .fold(0.0, f64::max),
-            };
-            let normal_law = input
-                .method
-                .normal_law(&law_input, input.vars, &self.model.contact);
+            let normal_velocity = law_input.normal_velocity;
             let (normal_force, normal_stiffness) = (normal_law.force, normal_law.stiffness);
             // The gap moves by h/2 per unit of normal velocity.
             let reach = x_gap[s].norm().max(master_point.norm());
@@ -292,11 +394,14 @@ where
             // the noise of a force near zero (the 3D blocks sliding over each other at first
             // touch: no convergence after four step cuts).
             let by_active_set = input.method.lagged_friction_threshold();
+            // A point of the contact patch that the other pass holds (`area_law_patch`) is
+            // closed for a law that reads only the status.
+            let in_patch = obstacle.is_none() && patch.get(s).copied().unwrap_or(false);
             let closed = if by_active_set {
                 normal_stiffness > 0.0
             } else {
                 normal_force > 0.0
-            };
+            } || (in_patch && !law.follows_normal_force());
             // The force a threshold reads: Coulomb's follows the normal force (the previous
             // pass's under implicit projection), the other laws' only the status.
             let threshold_force = if !law.follows_normal_force() {
@@ -360,14 +465,14 @@ where
                 }
             };
             let force = normal * normal_force + friction;
-            for &(n, c) in &nodes {
+            for &(n, c) in nodes {
                 for k in 0..D {
                     terms.forces[n * D + k] += c * force[k];
                 }
             }
             if normal_law.predicted_force != 0.0 {
                 terms.predicted_forces.resize(ndof, 0.0);
-                for &(n, c) in &nodes {
+                for &(n, c) in nodes {
                     for k in 0..D {
                         terms.predicted_forces[n * D + k] +=
                             c * normal[k] * normal_law.predicted_force;
