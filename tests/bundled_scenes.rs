@@ -402,6 +402,19 @@ fn folding_strip() {
     folding_strip_with(&["contact.method=\"soft_way\"", "contact.penalty=1e9"]);
 }
 
+/// With Tresca friction (1000 Pa) on the fold, under the soft way: an area law over a
+/// self-contact patch, which one pass often carries alone. Before a slave counted as closed
+/// where the other pass held the patch, this run stopped at step 568 (no convergence, the
+/// plate's corner), and the augmented Lagrangian's too.
+#[test]
+fn folding_strip_with_tresca_friction() {
+    folding_strip_with(&[
+        "contact.method=\"soft_way\"",
+        "contact.penalty=1e9",
+        "contact.friction={law=\"tresca\",limit=1000.0}",
+    ]);
+}
+
 /// The scene as written: implicit projection. Measured: the free end's faces at most 1.77e-5 m
 /// across each other (a corner of one arm against the end of the other, which one pass does
 /// not hold), 1.17e-5 m deep by `Simulation::overlaps`, 1.2e-2 of the reference dissipated.
