@@ -1,8 +1,7 @@
 //! Every bundled scene without a test of its own runs (shortened where long) with physical
 //! assertions against closed-form solutions (the tilting floor: against the slope's static
-//! balance and atan(mu); the gripper: the slip against the jaws' lift). The ring drop has its
-//! own (tests/friction.rs, tests/contact.rs); the gripper built through the API is
-//! tests/gripper.rs. None starts with an overlap or
+//! balance and atan(mu)). The ring drop and the gripper have theirs
+//! (tests/friction.rs, tests/contact.rs, tests/gripper.rs). None starts with an overlap or
 //! lets a body fall through an obstacle (issue 14).
 #![cfg(feature = "formats")]
 
@@ -304,39 +303,6 @@ fn tilting_floor() {
         slid_15.abs() < 5e-4 && slid_end > 1e-3,
         "{slid_15} {slid_end}"
     );
-}
-
-/// The bundled gripper (2D, the default method, h = 0.5 ms) to 0.3 s: the jaws close, hold from
-/// 0.12 s and lift 10 mm from 0.2 s. The block's centre rises with them, slipping less than the
-/// issue's 1 mm, while the jaws' friction carries its weight (the API's gripper at its own
-/// settings is tests/gripper.rs; this is the scene file a user runs).
-#[test]
-fn gripper() {
-    let (mut sim, _, centre) = scene::<2>(
-        "gripper",
-        &["simulation.end_time=0.3", "output.vtk_interval=0.0"],
-        [0.05, 0.05, 0.0],
-    );
-    let rise = history(&mut sim, 0.3, centre, 1);
-    let at = |time: f64| {
-        rise.iter()
-            .find(|(t, _)| (t - time).abs() < 1e-9)
-            .map(|&(_, u)| u)
-            .expect("a step ends there")
-    };
-    let (held, lifted) = (at(0.2), at(0.3));
-    let slip = 0.01 - (lifted - held);
-    let (e, account) = (sim.energies(), common::energy_error(&sim));
-    eprintln!(
-        "gripper.toml: the centre rose {:.4} mm while the jaws rose 10 mm (slip {:.4} mm); \
-         dissipated {:.3e} J, account {account:.2e} of the reference",
-        1e3 * (lifted - held),
-        1e3 * slip,
-        e.dissipated
-    );
-    assert!(slip.abs() < 1e-3, "slip {slip} m");
-    assert!(e.dissipated > 0.0, "{}", e.dissipated);
-    assert!(account < 1e-2, "energy account {account}");
 }
 
 /// How far the block's centre node has slid down the plate turned by `theta` [m].
