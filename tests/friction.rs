@@ -536,16 +536,21 @@ where
     Dim<D>: SpatialDim<D>,
 {
     let limit = 100.0;
-    let area = if D == 2 { 0.05 } else { 0.05 * 0.05 };
-    let mass = 1000.0 * area * 0.05;
     block_slides_on_a_block::<D>(
         method,
         FrictionLaw::Tresca {
             limit,
             regularization: 1e-4,
         },
-        limit * area / mass,
+        area_law_slowing::<D>(limit),
     );
+}
+
+/// The slowing (m/s^2) of the upper block under an area law's limit (Pa): limit x A / m, A its
+/// bottom face (length x unit thickness in 2D), m its mass (5 cm high, 1000 kg/m^3).
+fn area_law_slowing<const D: usize>(limit: f64) -> f64 {
+    let area = if D == 2 { 0.05 } else { 0.05 * 0.05 };
+    limit * area / (1000.0 * area * 0.05)
 }
 
 /// Viscoplastic friction `-a A |v|^(p-1) v` at exponent p = 0: a regularised Tresca law
@@ -555,8 +560,6 @@ where
     Dim<D>: SpatialDim<D>,
 {
     let coefficient = 100.0;
-    let area = if D == 2 { 0.05 } else { 0.05 * 0.05 };
-    let mass = 1000.0 * area * 0.05;
     block_slides_on_a_block::<D>(
         method,
         FrictionLaw::Viscoplastic {
@@ -564,7 +567,7 @@ where
             exponent: 0.0,
             regularization: 1e-4,
         },
-        coefficient * area / mass,
+        area_law_slowing::<D>(coefficient),
     );
 }
 
