@@ -179,9 +179,10 @@ where
 /// 1 cm in from the edges below, which one pass left to sink 3.99e-3 m (2D). What remains is
 /// transient, inside the contact patches: a master node between two held slaves can sink into
 /// the slave facet under it while the blocks ring (2.9e-4 m in 2D; 5.2e-4 m, at 0.19 s, before
-/// each step's active set started from the last one's); in the last 50 ms, as the blocks slide
-/// apart, it is out.
-fn a_stack_under_implicit_projection<const D: usize>()
+/// each step's active set started from the last one's); in 2D, in the last 50 ms, as the
+/// blocks slide apart, it is out (`settled`, m); in 3D a top-block node still sinks 4.4e-4 m
+/// then (the open test below asks for none).
+fn a_stack_under_implicit_projection<const D: usize>(settled_below: f64)
 where
     Dim<D>: SpatialDim<D>,
 {
@@ -196,7 +197,10 @@ where
     );
     assert!(error < 2e-2, "energy error {error}");
     assert!(sideways < 1e-8, "sideways momentum created: {sideways:e}");
-    assert!(settled < 1e-6, "penetration in the last 50 ms {settled}");
+    assert!(
+        settled < settled_below,
+        "penetration in the last 50 ms {settled}"
+    );
     assert!(penetration < 1e-3, "penetration {penetration}");
 }
 
@@ -432,7 +436,7 @@ mod d2 {
 
     #[test]
     fn a_stack_under_implicit_projection() {
-        super::a_stack_under_implicit_projection::<2>();
+        super::a_stack_under_implicit_projection::<2>(1e-6);
     }
     #[test]
     fn a_stack_under_the_soft_way() {
@@ -506,6 +510,18 @@ mod d3 {
     fn trapezoid_gaps_keep_the_stack_apart() {
         super::trapezoid_gaps_keep_the_stack_apart::<3>();
     }
+    /// It stopped at step 398 until an active edge pair stayed held for the rest of its step
+    /// (`held_pairs`). Measured 2026-11-29: the account at most 1.77e-2 after the landing,
+    /// deepest gap 5.9e-4 m (4.4e-4 m in the last 50 ms: a master node's sag), 5705 Newton
+    /// iterations, 2 cut steps.
+    #[test]
+    #[cfg_attr(
+        not(feature = "parallel"),
+        ignore = "slow without threads (about 40 s): runs with the default features; nothing it reaches depends on a feature but the threaded assembly, which determinism.rs checks"
+    )]
+    fn a_stack_under_implicit_projection() {
+        super::a_stack_under_implicit_projection::<3>(1e-3);
+    }
     /// Measured: largest penetration 1.04e-3 m, energy error 3.7e-3 at the end (before the
     /// penalty's loss was booked and the account checked throughout).
     #[test]
@@ -520,17 +536,13 @@ mod open {
     use softway::contact::{ContactMethod, GapDisplacement};
 
     #[test]
-    #[ignore = "stops at step 398 (t = 0.397 s, reached in 2.4 minutes in a dev build, 21 before the \
-                coupled terms were solved by GMRES, 2026-11-29): Newton out of iterations, relative \
-                residual 9.9e-4, the largest residual at a top-block node that is not a contact \
-                point, while the frictionless blocks slide apart: from rel 2e-2 each full Newton \
-                step brings one more pair into the terms (17 rank-one terms against 16), the \
-                residual jumps to 1.0 and is halved back, the same without the geometric part \
-                (scratch runs from a checkpoint; one that kept the geometric part in more of the \
-                solves passed it and ran to the end). With one pass \
-                the upper block's bottom edge sank 3.44e-3 m into the lower one; with the edge \
-                pairs its deepest gap up to t = 0.24 s was 6.0e-4 m, a master node inside a patch \
-                while the blocks ring, not the micrometre asked (book, contact chapter, Limits)"]
+    #[ignore = "penetration: 5.9e-4 m at worst, 4.4e-4 m in the last 50 ms (2026-11-29), a \
+                master node between two held slaves sinking into the slave facet under it \
+                (one pass; book, contact chapter, Limits); it runs to the end and the account \
+                holds (d3::a_stack_under_implicit_projection). Until an active edge pair stayed \
+                held for the rest of its step it stopped at step 398: a top-block node in 5 kN \
+                of tension dropped by the edge rule and taken again at the next iterate, for \
+                50 iterations"]
     fn implicit_projection_3d() {
         // The issue's targets: the account within 2 %, no block inside another.
         let Stack {
@@ -546,10 +558,11 @@ mod open {
     /// The issue's stack with Coulomb friction, the 3D cell the others leave: soft way and
     /// augmented Lagrangian pass (slow, `d3`), implicit projection runs in 2D (`d2`).
     #[test]
-    #[ignore = "stops at step 142 (t = 0.141 s, 2.4 minutes in a dev build, 2026-11-29): Newton \
-                out of iterations, relative residual 3.3e-3, the largest residual at a bottom-block \
-                node held on the middle block, 36 of 91 pairs loaded; the same with the rank-one \
-                terms never left out (a scratch run); the 2D one runs"]
+    #[ignore = "stops at step 191 (t = 0.190 s, 43 s in a dev build, 2026-11-29; at step 142 before \
+                active edge pairs stayed held): Newton out of iterations at a fixed set of 82 \
+                pairs, the residual cycling between 8.3e-4 and 2.9e-3 of the forces with the \
+                line search (the return map's stick and slip trading places), the largest at a \
+                bottom-block node held on the middle block; the 2D one runs"]
     fn a_coulomb_stack_under_implicit_projection_3d() {
         super::coulomb_stack::<3>(ContactMethod::ImplicitProjection, 1e-3);
     }

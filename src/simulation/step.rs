@@ -452,7 +452,17 @@ where
                     &start.obstacles_t1,
                 );
                 let mut pairs = detector.pairs(&x_end, &start.obstacles_t1);
-                held_pairs(method, &mut pairs, detector, &x_end, &self.node_offsets);
+                // The edge pairs Newton held, and any the end positions put beyond an edge.
+                let mut edge_held = vars.edge_held.clone();
+                held_pairs(
+                    method,
+                    &mut pairs,
+                    detector,
+                    &x_end,
+                    &self.node_offsets,
+                    &mut edge_held,
+                    &vars.active,
+                );
                 let (u_before, v_before) = (u1.clone(), v1.clone());
                 let mut impulses = vec![vec![0.0; D]; self.model.obstacles.len()];
                 // Projected on the gaps' positions; the configuration moves with them.
@@ -476,7 +486,15 @@ where
                                 &start.obstacles_t1,
                             );
                             pairs = detector.pairs(&x_end, &start.obstacles_t1);
-                            held_pairs(method, &mut pairs, detector, &x_end, &self.node_offsets);
+                            held_pairs(
+                                method,
+                                &mut pairs,
+                                detector,
+                                &x_end,
+                                &self.node_offsets,
+                                &mut edge_held,
+                                &vars.active,
+                            );
                         }
                         let du = self.weighted_projection(&pairs, &facets, &x_end, h, step)?;
                         for (g, d) in gap_u1.iter_mut().zip(&du) {
