@@ -4,6 +4,8 @@
 //! (or, on failure, the restore of the old one). A step that does not converge is cut in
 //! halves.
 
+use std::collections::BTreeSet;
+
 use nalgebra::SVector;
 
 use super::newton::{held_pairs, Solution, StepStart};
@@ -12,7 +14,10 @@ use super::{end_positions, invalid, Simulation, StepReport};
 use crate::assembly;
 use crate::contact::methods::projection::{project, Applied, BodyImpulse, ProjectionContext};
 use crate::contact::methods::{self, EndProjection, Method};
-use crate::contact::{ContactMethod, GapDisplacement, Master, ProjectionEnergy, ProjectionMetric};
+use crate::contact::{
+    ContactKey, ContactMethod, ContactPair, GapDisplacement, Master, ProjectionEnergy,
+    ProjectionMetric,
+};
 use crate::dim::{Dim, SpatialDim};
 use crate::error::{Error, Result};
 use crate::time::SpaceTimeScheme;
@@ -343,6 +348,37 @@ where
         work - change
     }
 
+    /// The pairs the end-of-step projection moves, at the end positions `x_end`: detected,
+    /// then held as Newton held them (`held_pairs`, with the step's edge pairs `edge_held` and
+    /// its active set `active`).
+    fn end_of_step_pairs(
+        &mut self,
+        start: &StepStart<D>,
+        x_end: &[SVector<f64, D>],
+        method: &dyn Method,
+        edge_held: &mut BTreeSet<ContactKey>,
+        active: &BTreeSet<ContactKey>,
+    ) -> Vec<ContactPair<D>> {
+        let detector = self.caches.detector.as_mut().expect("contact detection");
+        detector.update_candidates_posed(
+            &start.x0,
+            x_end,
+            &start.obstacles_t0,
+            &start.obstacles_t1,
+        );
+        let mut pairs = detector.pairs(x_end, &start.obstacles_t1);
+        held_pairs(
+            method,
+            &mut pairs,
+            detector,
+            x_end,
+            &self.node_offsets,
+            edge_held,
+            active,
+        );
+        pairs
+    }
+
     /// One step without cutting. `count_step` is false for the first pieces of a cut step.
     fn advance_once(
         &mut self,
@@ -442,126 +478,100 @@ where
             detector.release_facet_locks();
         }
         let rule = method.end_projection();
-        if rule != EndProjection::None {
-            if let Some(detector) = self.caches.detector.as_mut() {
-                let x_end = end_positions(&self.reference, &gap_u1, &v1, &vec![0.0; ndof], 0.0);
-                detector.update_candidates_posed(
-                    &start.x0,
-                    &x_end,
-                    &start.obstacles_t0,
-                    &start.obstacles_t1,
+        if rule != EndProjection::None && self.caches.detector.is_some() {
+            let x_end = end_positions(&self.reference, &gap_u1, &v1, &vec![0.0; ndof], 0.0);
+            // The edge pairs Newton held, and any the end positions put beyond an edge.
+            let mut edge_held = vars.edge_held.clone();
+            let pairs =
+                self.end_of_step_pairs(&start, &x_end, method, &mut edge_held, &vars.active);
+            let (u_before, v_before) = (u1.clone(), v1.clone());
+            let mut impulses = vec![vec![0.0; D]; self.model.obstacles.len()];
+            // Projected on the gaps' positions; the configuration moves with them.
+            let gap_before = gap_u1.clone();
+            if rule == EndProjection::Active
+                && self.model.contact.projection == ProjectionMetric::Step
+            {
+                let detector = self.caches.detector.as_ref().expect("checked");
+                let facets = detector.surface().facets().to_vec();
+                // Twice: the first correction can bring neighbours of the contact
+                // patch into the master.
+                let mut pairs = pairs;
+                for pass in 0..2 {
+                    let x_end = end_positions(&self.reference, &gap_u1, &v1, &vec![0.0; ndof], 0.0);
+                    if pass > 0 {
+                        pairs = self.end_of_step_pairs(
+                            &start,
+                            &x_end,
+                            method,
+                            &mut edge_held,
+                            &vars.active,
+                        );
+                    }
+                    let du = self.weighted_projection(&pairs, &facets, &x_end, h, step)?;
+                    for (g, d) in gap_u1.iter_mut().zip(&du) {
+                        *g += d;
+                    }
+                }
+            } else {
+                let detector = self.caches.detector.as_ref().expect("checked");
+                let velocity = |k: usize, x: &SVector<f64, D>| {
+                    self.surface_velocity(k, &start.obstacles_t1[k], x)
+                };
+                let context = ProjectionContext {
+                    rule,
+                    active: &vars.active,
+                    facet_body: detector.surface().facet_body(),
+                    facets: detector.surface().facets(),
+                    nodal_mass: &self.nodal_mass,
+                    prescribed: &self.prescribed,
+                    obstacle_velocity: &velocity,
+                    time_step: h,
+                };
+                project(
+                    &context,
+                    &pairs,
+                    &mut gap_u1,
+                    &mut v1,
+                    &mut impulses,
+                    &mut applied,
+                    &mut between_bodies,
                 );
-                let mut pairs = detector.pairs(&x_end, &start.obstacles_t1);
-                // The edge pairs Newton held, and any the end positions put beyond an edge.
-                let mut edge_held = vars.edge_held.clone();
-                held_pairs(
-                    method,
-                    &mut pairs,
-                    detector,
-                    &x_end,
-                    &self.node_offsets,
-                    &mut edge_held,
-                    &vars.active,
+            }
+            for i in 0..ndof {
+                u1[i] += gap_u1[i] - gap_before[i];
+            }
+            if self.model.contact.projection_energy == ProjectionEnergy::Bounded
+                && rule == EndProjection::Active
+                && self.model.contact.projection == ProjectionMetric::Step
+            {
+                self.remove_projection_energy(
+                    &u_before,
+                    &u1,
+                    &mut v1,
+                    f_ext,
+                    h,
+                    material_history,
+                    self.state.dissipated() + h * terms.dissipation_rate,
                 );
-                let (u_before, v_before) = (u1.clone(), v1.clone());
-                let mut impulses = vec![vec![0.0; D]; self.model.obstacles.len()];
-                // Projected on the gaps' positions; the configuration moves with them.
-                let gap_before = gap_u1.clone();
-                if rule == EndProjection::Active
-                    && self.model.contact.projection == ProjectionMetric::Step
-                {
-                    let facets = detector.surface().facets().to_vec();
-                    // Twice: the first correction can bring neighbours of the contact
-                    // patch into the master.
-                    let mut pairs = pairs;
-                    for pass in 0..2 {
-                        let x_end =
-                            end_positions(&self.reference, &gap_u1, &v1, &vec![0.0; ndof], 0.0);
-                        if pass > 0 {
-                            let detector = self.caches.detector.as_mut().expect("checked");
-                            detector.update_candidates_posed(
-                                &start.x0,
-                                &x_end,
-                                &start.obstacles_t0,
-                                &start.obstacles_t1,
-                            );
-                            pairs = detector.pairs(&x_end, &start.obstacles_t1);
-                            held_pairs(
-                                method,
-                                &mut pairs,
-                                detector,
-                                &x_end,
-                                &self.node_offsets,
-                                &mut edge_held,
-                                &vars.active,
-                            );
-                        }
-                        let du = self.weighted_projection(&pairs, &facets, &x_end, h, step)?;
-                        for (g, d) in gap_u1.iter_mut().zip(&du) {
-                            *g += d;
-                        }
-                    }
-                } else {
-                    let detector = self.caches.detector.as_ref().expect("checked");
-                    let velocity = |k: usize, x: &SVector<f64, D>| {
-                        self.surface_velocity(k, &start.obstacles_t1[k], x)
-                    };
-                    let context = ProjectionContext {
-                        rule,
-                        active: &vars.active,
-                        facet_body: detector.surface().facet_body(),
-                        facets: detector.surface().facets(),
-                        nodal_mass: &self.nodal_mass,
-                        prescribed: &self.prescribed,
-                        obstacle_velocity: &velocity,
-                        time_step: h,
-                    };
-                    project(
-                        &context,
-                        &pairs,
-                        &mut gap_u1,
-                        &mut v1,
-                        &mut impulses,
-                        &mut applied,
-                        &mut between_bodies,
-                    );
+            }
+            if rule != EndProjection::None {
+                projection_dissipation = self.projection_dissipation(
+                    [&u_before, &v_before],
+                    [&u1, &v1],
+                    f_ext,
+                    &impulses,
+                    h,
+                    material_history,
+                );
+                if self.obstacles_turn() {
+                    // Turning obstacles' impulses also work through their turning.
+                    projection_dissipation +=
+                        self.spin_work(h, &start.obstacles_t1, applied.iter().copied());
                 }
-                for i in 0..ndof {
-                    u1[i] += gap_u1[i] - gap_before[i];
-                }
-                if self.model.contact.projection_energy == ProjectionEnergy::Bounded
-                    && rule == EndProjection::Active
-                    && self.model.contact.projection == ProjectionMetric::Step
-                {
-                    self.remove_projection_energy(
-                        &u_before,
-                        &u1,
-                        &mut v1,
-                        f_ext,
-                        h,
-                        material_history,
-                        self.state.dissipated() + h * terms.dissipation_rate,
-                    );
-                }
-                if rule != EndProjection::None {
-                    projection_dissipation = self.projection_dissipation(
-                        [&u_before, &v_before],
-                        [&u1, &v1],
-                        f_ext,
-                        &impulses,
-                        h,
-                        material_history,
-                    );
-                    if self.obstacles_turn() {
-                        // Turning obstacles' impulses also work through their turning.
-                        projection_dissipation +=
-                            self.spin_work(h, &start.obstacles_t1, applied.iter().copied());
-                    }
-                }
-                for (total, impulse) in contact_forces.iter_mut().zip(&impulses) {
-                    for (t, i) in total.iter_mut().zip(impulse) {
-                        *t += i;
-                    }
+            }
+            for (total, impulse) in contact_forces.iter_mut().zip(&impulses) {
+                for (t, i) in total.iter_mut().zip(impulse) {
+                    *t += i;
                 }
             }
         }
