@@ -126,14 +126,15 @@ pub enum Error {
     },
     /// Implicit projection's contact set cycled and the points it held closed to end the step
     /// pull with more than [`HELD_TENSION_FAILURE`](crate::simulation::HELD_TENSION_FAILURE)
-    /// of what the step's other contact points push with: the contact answer is mostly
-    /// adhesion that is not there.
+    /// of what the step's other contact points push with (or, if more, the run's contact
+    /// points in one step so far): the contact answer is mostly adhesion that is not there.
     #[error(
         "contact set cycling at step {step} (t = {time:.6e} s): {held} point(s) held closed \
          until the step's end pull with {tension:.3e} N against {compression:.3e} N of \
-         compression at the other contact points (the run stops above {limit}%); use a \
-         smaller time_step, or the soft way (contact.method = \"soft_way\"), whose contact \
-         set does not cycle"
+         compression at the other contact points (at most {run_compression:.3e} N in a step of \
+         the run so far; the run stops above {limit}% of the larger); use a smaller \
+         time_step, or the soft way (contact.method = \"soft_way\"), whose contact set does \
+         not cycle"
     )]
     ContactCycling {
         /// Step number (1-based).
@@ -146,6 +147,8 @@ pub enum Error {
         tension: f64,
         /// The other points' compressive normal forces (N).
         compression: f64,
+        /// The most the run's contact points pressed with in one step before (N).
+        run_compression: f64,
         /// The limit, in percent of the compression.
         limit: f64,
     },
