@@ -37,7 +37,7 @@
 //! **Implicit projection** has the same return map with Coulomb's threshold taken from the
 //! previous pass's normal force (its normal force is a multiplier, exact only when the active
 //! set has converged: the crate-internal `threshold_change` is that fixed point) and a
-//! tangential stiffness of 100 times the slave's diagonal per step (no penalty to borrow).
+//! tangential stiffness of the slave's diagonal per step (no penalty to borrow).
 //! Viscoplastic friction is the smooth law `F_t = -a A (|v_t|^2 + v_reg^2)^((p-1)/2) v_t` on
 //! the mean relative tangential velocity under every method ([`FrictionLaw::force`]).
 //!
