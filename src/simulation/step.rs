@@ -554,20 +554,18 @@ where
                     self.state.dissipated() + h * terms.dissipation_rate,
                 );
             }
-            if rule != EndProjection::None {
-                projection_dissipation = self.projection_dissipation(
-                    [&u_before, &v_before],
-                    [&u1, &v1],
-                    f_ext,
-                    &impulses,
-                    h,
-                    material_history,
-                );
-                if self.obstacles_turn() {
-                    // Turning obstacles' impulses also work through their turning.
-                    projection_dissipation +=
-                        self.spin_work(h, &start.obstacles_t1, applied.iter().copied());
-                }
+            projection_dissipation = self.projection_dissipation(
+                [&u_before, &v_before],
+                [&u1, &v1],
+                f_ext,
+                &impulses,
+                h,
+                material_history,
+            );
+            if self.obstacles_turn() {
+                // Turning obstacles' impulses also work through their turning.
+                projection_dissipation +=
+                    self.spin_work(h, &start.obstacles_t1, applied.iter().copied());
             }
             for (total, impulse) in contact_forces.iter_mut().zip(&impulses) {
                 for (t, i) in total.iter_mut().zip(impulse) {
