@@ -179,7 +179,8 @@ both_dims!(
 
 /// A Hex8 cube dropped on a floor with the soft way, its contact-free and contact matrices
 /// large enough (2.4 million factor entries) that the factorisations run on the rayon pool's
-/// threads (feature `parallel-factor`): the same bits on 1, 2 and 4 threads.
+/// threads (feature `parallel-factor`) and the solves are the tree-split ones (feature
+/// `parallel`): the same bits on 1, 2 and 4 threads.
 #[test]
 fn threaded_factorisations_are_thread_independent() {
     use nalgebra::Vector3;

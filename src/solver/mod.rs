@@ -8,12 +8,16 @@
 //! tiles of the output, each summed over the whole depth by one thread (measured:
 //! `examples/thread_report.rs`, identical factors on 1, 2, 4 and 8 threads). It is off by
 //! default because on the project's 2-core machine, shared with other work, two threads took
-//! 1.1 to 2x the time of one at 2.4, 18 and 70 million factor entries. The triangular solves
-//! stay sequential: faer's threaded solve splits the depth of a matrix-vector product among the
-//! threads and adds their partial sums, so its result changes with the thread count.
+//! 1.1 to 2x the time of one at 2.4, 18 and 70 million factor entries. faer's threaded
+//! triangular solve splits the depth of a matrix-vector product among the threads and adds
+//! their partial sums, so its result changes with the thread count: small factors are solved by
+//! faer sequentially, large ones by [`tree_solve`], which shares out independent subtrees of
+//! the elimination tree among the rayon pool's threads (feature `parallel`) with the same bits
+//! on any thread count.
 
 pub(crate) mod krylov;
 mod ordering;
+mod tree_solve;
 
 pub use ordering::FillOrdering;
 
@@ -23,7 +27,7 @@ use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::perm::Perm;
 use faer::sparse::linalg::cholesky::{
     factorize_symbolic_cholesky, CholeskySymbolicParams, LltRef, SymbolicCholesky,
-    SymmetricOrdering,
+    SymbolicCholeskyRaw, SymmetricOrdering,
 };
 use faer::sparse::SparseColMat;
 use faer::{Conj, Par, Side};
@@ -36,6 +40,13 @@ use crate::error::{Error, Result};
 /// from 2.4 million entries (1.1x the time of one thread) up.
 #[doc(hidden)]
 pub const PARALLEL_FACTOR_ENTRIES: usize = 1_000_000;
+
+/// Factors with at least this many entries are solved by the tree-split solve
+/// ([`tree_solve`]: independent subtrees on the rayon pool's threads with the feature
+/// `parallel`), smaller ones by faer's sequential solve. Below it, the tasks are too small for
+/// threads to pay (a round figure, like [`PARALLEL_FACTOR_ENTRIES`]).
+#[doc(hidden)]
+pub const PARALLEL_SOLVE_ENTRIES: usize = 1_000_000;
 
 /// The parallelism of a numeric factorisation with `entries` factor entries: the rayon pool's
 /// threads for a large factor (feature `parallel-factor`), one thread otherwise. The factor's
@@ -73,6 +84,8 @@ enum Values {
 /// reused by every numeric factorisation.
 pub struct SparseCholesky {
     symbolic: Arc<SymbolicCholesky<usize>>,
+    /// The split of a large supernodal factor's tree for the solves (`None`: faer's solve).
+    split: Option<Arc<tree_solve::TreeSplit>>,
     /// The numeric factor.
     values: Values,
     /// The pattern the symbolic analysis was made for (column pointers, row indices).
@@ -149,8 +162,17 @@ impl SparseCholesky {
         let workspace = Mutex::new(MemBuffer::new(
             symbolic.solve_in_place_scratch::<f64>(1, Par::Seq),
         ));
+        let split = match symbolic.raw() {
+            SymbolicCholeskyRaw::Supernodal(supernodal)
+                if symbolic.len_val() >= PARALLEL_SOLVE_ENTRIES =>
+            {
+                tree_solve::TreeSplit::new(supernodal).map(Arc::new)
+            }
+            _ => None,
+        };
         Ok(SparseCholesky {
             workspace,
+            split,
             symbolic: Arc::new(symbolic),
             values: Values::None,
             pattern: (col_ptr, row_idx),
@@ -167,11 +189,23 @@ impl SparseCholesky {
                 self.symbolic.solve_in_place_scratch::<f64>(1, Par::Seq),
             )),
             symbolic: Arc::clone(&self.symbolic),
+            split: self.split.clone(),
             values: Values::None,
             pattern: self.pattern.clone(),
             ordering: self.ordering,
             block: self.block,
         }
+    }
+
+    /// The same analysis solved by the tree-split solve whatever its size (tests of small
+    /// factors); `None` when the tree has nothing to split.
+    #[cfg(test)]
+    fn with_tree_split(mut self) -> Option<Self> {
+        let SymbolicCholeskyRaw::Supernodal(supernodal) = self.symbolic.raw() else {
+            return None;
+        };
+        self.split = Some(Arc::new(tree_solve::TreeSplit::new(supernodal)?));
+        Some(self)
     }
 
     /// Number of stored entries of the factor L (its memory is 8 bytes per entry).
@@ -295,15 +329,46 @@ impl SparseCholesky {
         matches!(self.values, Values::Single(_))
     }
 
+    /// Solves with the factor `values` in their precision: the tree-split solve for a large
+    /// factor, faer's sequential one otherwise (its threaded solve sums partial products per
+    /// thread, see the module's documentation, which would make the result depend on the
+    /// thread count).
+    fn solve_values<T: tree_solve::Real>(
+        &self,
+        values: &[T],
+        x: &mut [T],
+        scratch: &mut MemBuffer,
+    ) {
+        let (Some(split), SymbolicCholeskyRaw::Supernodal(supernodal)) =
+            (&self.split, self.symbolic.raw())
+        else {
+            LltRef::new(&self.symbolic, values).solve_in_place_with_conj(
+                Conj::No,
+                faer::ColMut::from_slice_mut(x).as_mat_mut(),
+                Par::Seq,
+                MemStack::new(scratch),
+            );
+            return;
+        };
+        match self.symbolic.perm() {
+            Some(perm) => {
+                let (forward, inverse) = perm.arrays();
+                let mut permuted: Vec<T> = forward.iter().map(|&f| x[f]).collect();
+                split.solve(supernodal, values, &mut permuted);
+                for (xi, &i) in x.iter_mut().zip(inverse) {
+                    *xi = permuted[i];
+                }
+            }
+            None => split.solve(supernodal, values, x),
+        }
+    }
+
     /// Solves `A x = b` in place (leaves `rhs` as is when nothing is factored). With a
     /// single-precision factor the result is rounded accordingly.
     pub fn solve_in_place(&self, rhs: &mut [f64]) {
         if rhs.is_empty() {
             return;
         }
-        // Sequential: faer's threaded solve sums partial products per thread (see the module's
-        // documentation), which would make the result depend on the thread count.
-        let par = Par::Seq;
         // A poisoned lock only means another solve panicked; the buffer is plain scratch.
         let mut scratch = self
             .workspace
@@ -311,12 +376,7 @@ impl SparseCholesky {
             .unwrap_or_else(std::sync::PoisonError::into_inner);
         match &self.values {
             Values::None => {}
-            Values::Double(values) => LltRef::new(&self.symbolic, values).solve_in_place_with_conj(
-                Conj::No,
-                faer::ColMut::from_slice_mut(rhs).as_mat_mut(),
-                par,
-                MemStack::new(&mut scratch),
-            ),
+            Values::Double(values) => self.solve_values(values, rhs, &mut scratch),
             Values::Single(values) => {
                 // Scaled to a largest entry of 1: single precision's range is narrow (a
                 // residual near 1e-40 would be subnormal, slow, and lose its digits).
@@ -337,12 +397,7 @@ impl SparseCholesky {
                         }
                     })
                     .collect();
-                LltRef::new(&self.symbolic, values).solve_in_place_with_conj(
-                    Conj::No,
-                    faer::ColMut::from_slice_mut(&mut single).as_mat_mut(),
-                    par,
-                    MemStack::new(&mut scratch),
-                );
+                self.solve_values(values, &mut single, &mut scratch);
                 for (r, s) in rhs.iter_mut().zip(&single) {
                     *r = f64::from(*s) * scale;
                 }
@@ -423,6 +478,66 @@ mod tests {
             .zip(b)
             .map(|(p, q)| (p - q).abs())
             .fold(0.0, f64::max)
+    }
+
+    /// The tree-split solve agrees with faer's sequential solve to round-off, in double and
+    /// single precision, and has the same bits on 1, 2 and 4 threads.
+    #[test]
+    fn the_tree_split_solve_agrees_with_faer_and_with_itself_on_any_thread_count() {
+        let a = grid_laplacian(14, 3, 0.01);
+        let b: Vec<f64> = (0..a.nrows()).map(|i| (i as f64 * 0.37).sin()).collect();
+        let mut faer_solve =
+            SparseCholesky::analyse_with(&a, FillOrdering::NestedDissection, 3).unwrap();
+        assert!(faer_solve.split.is_none(), "small: faer's solve");
+        let mut tree = faer_solve
+            .unfactored_copy()
+            .with_tree_split()
+            .expect("a nested dissection tree splits");
+        for single in [false, true] {
+            if single {
+                faer_solve.factor_single(&a, 0).unwrap();
+                tree.factor_single(&a, 0).unwrap();
+            } else {
+                faer_solve.factor(&a, 0).unwrap();
+                tree.factor(&a, 0).unwrap();
+            }
+            let mut expected = b.clone();
+            faer_solve.solve_in_place(&mut expected);
+            let mut solutions = Vec::new();
+            for threads in [1, 2, 4] {
+                let mut x = b.clone();
+                #[cfg(feature = "parallel")]
+                rayon::ThreadPoolBuilder::new()
+                    .num_threads(threads)
+                    .build()
+                    .unwrap()
+                    .install(|| tree.solve_in_place(&mut x));
+                #[cfg(not(feature = "parallel"))]
+                let _ = (threads, tree.solve_in_place(&mut x));
+                solutions.push(x);
+            }
+            let tolerance = if single { 1e-5 } else { 1e-12 };
+            let largest = expected.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+            let difference = solutions[0]
+                .iter()
+                .zip(&expected)
+                .map(|(p, q)| (p - q).abs())
+                .fold(0.0, f64::max);
+            assert!(
+                difference <= tolerance * largest,
+                "{difference} of {largest}"
+            );
+            if !single {
+                assert!(residual_of(&a, &solutions[0], &b) < 1e-12);
+            }
+            for x in &solutions[1..] {
+                let same = x
+                    .iter()
+                    .zip(&solutions[0])
+                    .all(|(p, q)| p.to_bits() == q.to_bits());
+                assert!(same, "the bits follow the thread count (single: {single})");
+            }
+        }
     }
 
     #[test]
