@@ -11,7 +11,7 @@
 //! 1.1 to 2x the time of one at 2.4, 18 and 70 million factor entries. faer's threaded
 //! triangular solve splits the depth of a matrix-vector product among the threads and adds
 //! their partial sums, so its result changes with the thread count: small factors are solved by
-//! faer sequentially, large ones by [`tree_solve`], which shares out independent subtrees of
+//! faer sequentially, large ones by `tree_solve`, which shares out independent subtrees of
 //! the elimination tree among the rayon pool's threads (feature `parallel`) with the same bits
 //! on any thread count.
 
@@ -42,7 +42,7 @@ use crate::error::{Error, Result};
 pub const PARALLEL_FACTOR_ENTRIES: usize = 1_000_000;
 
 /// Factors with at least this many entries are solved by the tree-split solve
-/// ([`tree_solve`]: independent subtrees on the rayon pool's threads with the feature
+/// (`tree_solve`: independent subtrees on the rayon pool's threads with the feature
 /// `parallel`), smaller ones by faer's sequential solve. Below it, the tasks are too small for
 /// threads to pay (a round figure, like [`PARALLEL_FACTOR_ENTRIES`]).
 #[doc(hidden)]
