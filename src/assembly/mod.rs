@@ -342,23 +342,97 @@ pub fn lump(mass: &mut SparseColMat<usize, f64>) {
     }
 }
 
+/// Stored entries from which `symmetric_mul_add` is computed in `PRODUCT_CHUNKS` column
+/// chunks, on the rayon pool's threads with the feature `parallel` (the same chunks and sums
+/// on one thread: the same bits on any thread count). Below it, the product is one sequential
+/// pass (a round figure, like the solver's thresholds).
+#[doc(hidden)]
+pub const PARALLEL_PRODUCT_ENTRIES: usize = 1_000_000;
+
+/// The column chunks of a large product, of about equal stored entries.
+const PRODUCT_CHUNKS: usize = 8;
+
 /// `y += s A x` for a symmetric matrix stored as its lower triangle.
 pub fn symmetric_mul_add(a: &SparseColMat<usize, f64>, x: &[f64], s: f64, y: &mut [f64]) {
+    if a.val().len() < PARALLEL_PRODUCT_ENTRIES {
+        lower_columns_mul_add(a, x, s, 0..a.ncols(), y, 0);
+    } else {
+        chunked_mul_add(a, x, s, y);
+    }
+}
+
+/// [`symmetric_mul_add`] in [`PRODUCT_CHUNKS`] column chunks.
+fn chunked_mul_add(a: &SparseColMat<usize, f64>, x: &[f64], s: f64, y: &mut [f64]) {
+    let col_ptr = a.symbolic().col_ptr();
+    let entries = a.val().len();
+    // Each chunk of columns adds into its own buffer, over the rows from its first column on
+    // (the lower triangle's); the buffers are then added row by row in the chunks' order.
+    let mut bounds = vec![0];
+    for c in 1..PRODUCT_CHUNKS {
+        let target = c * entries / PRODUCT_CHUNKS;
+        let j = col_ptr.partition_point(|&p| p < target).min(a.ncols());
+        bounds.push(j.max(*bounds.last().expect("one bound")));
+    }
+    bounds.push(a.ncols());
+    let chunk = |c: usize| {
+        let (first, end) = (bounds[c], bounds[c + 1]);
+        let mut buffer = vec![0.0; a.nrows() - first];
+        lower_columns_mul_add(a, x, s, first..end, &mut buffer, first);
+        buffer
+    };
+    #[cfg(feature = "parallel")]
+    let buffers: Vec<Vec<f64>> = {
+        use rayon::prelude::*;
+        (0..PRODUCT_CHUNKS).into_par_iter().map(chunk).collect()
+    };
+    #[cfg(not(feature = "parallel"))]
+    let buffers: Vec<Vec<f64>> = (0..PRODUCT_CHUNKS).map(chunk).collect();
+    let add_rows = |(block, rows): (usize, &mut [f64])| {
+        let start = block * ROW_BLOCK;
+        for (c, buffer) in buffers.iter().enumerate() {
+            let first = bounds[c];
+            for (k, yi) in rows.iter_mut().enumerate() {
+                if start + k >= first {
+                    *yi += buffer[start + k - first];
+                }
+            }
+        }
+    };
+    const ROW_BLOCK: usize = 1 << 14;
+    #[cfg(feature = "parallel")]
+    {
+        use rayon::prelude::*;
+        y.par_chunks_mut(ROW_BLOCK).enumerate().for_each(add_rows);
+    }
+    #[cfg(not(feature = "parallel"))]
+    y.chunks_mut(ROW_BLOCK).enumerate().for_each(add_rows);
+}
+
+/// `y[i - first] += s (A x)_i` restricted to the stored entries of `columns` (lower triangle,
+/// each off-diagonal entry standing for two), for rows `i >= first`.
+fn lower_columns_mul_add(
+    a: &SparseColMat<usize, f64>,
+    x: &[f64],
+    s: f64,
+    columns: std::ops::Range<usize>,
+    y: &mut [f64],
+    first: usize,
+) {
     let col_ptr = a.symbolic().col_ptr();
     let row_idx = a.symbolic().row_idx();
     let vals = a.val();
-    for j in 0..a.ncols() {
+    for j in columns {
         let xj = s * x[j];
         let mut acc = 0.0;
         for k in col_ptr[j]..col_ptr[j + 1] {
             let i = row_idx[k];
             let v = vals[k];
-            y[i] += v * xj;
+            y[i - first] += v * xj;
             if i != j {
                 acc += v * x[i];
             }
         }
-        y[j] += s * acc;
+        y[j - first] += s * acc;
     }
 }
 

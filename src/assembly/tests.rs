@@ -388,3 +388,50 @@ fn the_geometric_stiffness_is_its_definition() {
     compare::<2>(Kinematics::Axisymmetric);
     compare::<3>(Kinematics::Solid);
 }
+
+/// The chunked symmetric product (large matrices) agrees with the one-pass product to
+/// round-off and has the same bits on 1, 2 and 4 threads.
+#[test]
+fn the_chunked_symmetric_product_agrees_and_ignores_the_thread_count() {
+    use faer::sparse::Triplet;
+    let n = 3000;
+    let mut triplets = Vec::new();
+    for j in 0..n {
+        triplets.push(Triplet::new(j, j, 4.0 + (j % 7) as f64));
+        for d in [1, 5, 37, 400] {
+            if j + d < n {
+                triplets.push(Triplet::new(j + d, j, -0.3 - 1e-3 * (d as f64)));
+            }
+        }
+    }
+    let a = SparseColMat::<usize, f64>::try_new_from_triplets(n, n, &triplets).unwrap();
+    let x: Vec<f64> = (0..n).map(|i| (i as f64 * 0.37).sin()).collect();
+    let start: Vec<f64> = (0..n).map(|i| (i as f64 * 0.11).cos()).collect();
+    let mut expected = start.clone();
+    lower_columns_mul_add(&a, &x, -0.7, 0..n, &mut expected, 0);
+    let mut results = Vec::new();
+    for threads in [1, 2, 4] {
+        let mut y = start.clone();
+        #[cfg(feature = "parallel")]
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap()
+            .install(|| chunked_mul_add(&a, &x, -0.7, &mut y));
+        #[cfg(not(feature = "parallel"))]
+        let _ = (threads, chunked_mul_add(&a, &x, -0.7, &mut y));
+        results.push(y);
+    }
+    let difference = results[0]
+        .iter()
+        .zip(&expected)
+        .map(|(p, q)| (p - q).abs())
+        .fold(0.0, f64::max);
+    assert!(difference < 1e-13, "{difference}");
+    for y in &results[1..] {
+        assert!(y
+            .iter()
+            .zip(&results[0])
+            .all(|(p, q)| p.to_bits() == q.to_bits()));
+    }
+}
