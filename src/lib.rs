@@ -67,6 +67,25 @@ pub mod time;
 #[cfg(test)]
 mod verify_record;
 
+/// Runs `f` on a rayon pool of `threads` threads (feature `parallel`; without it, here):
+/// the unit tests of results that must not depend on the thread count.
+#[cfg(test)]
+pub(crate) fn on_threads<T: Send>(threads: usize, f: impl FnOnce() -> T + Send) -> T {
+    #[cfg(feature = "parallel")]
+    {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .expect("a thread pool")
+            .install(f)
+    }
+    #[cfg(not(feature = "parallel"))]
+    {
+        let _ = threads;
+        f()
+    }
+}
+
 pub use error::{Error, Result};
 pub use simulation::{Simulation, Simulation2, Simulation3};
 pub use solver::FillOrdering;

@@ -412,14 +412,7 @@ fn the_chunked_symmetric_product_agrees_and_ignores_the_thread_count() {
     let mut results = Vec::new();
     for threads in [1, 2, 4] {
         let mut y = start.clone();
-        #[cfg(feature = "parallel")]
-        rayon::ThreadPoolBuilder::new()
-            .num_threads(threads)
-            .build()
-            .unwrap()
-            .install(|| chunked_mul_add(&a, &x, -0.7, &mut y));
-        #[cfg(not(feature = "parallel"))]
-        let _ = (threads, chunked_mul_add(&a, &x, -0.7, &mut y));
+        crate::on_threads(threads, || chunked_mul_add(&a, &x, -0.7, &mut y));
         results.push(y);
     }
     let difference = results[0]

@@ -506,14 +506,7 @@ mod tests {
             let mut solutions = Vec::new();
             for threads in [1, 2, 4] {
                 let mut x = b.clone();
-                #[cfg(feature = "parallel")]
-                rayon::ThreadPoolBuilder::new()
-                    .num_threads(threads)
-                    .build()
-                    .unwrap()
-                    .install(|| tree.solve_in_place(&mut x));
-                #[cfg(not(feature = "parallel"))]
-                let _ = (threads, tree.solve_in_place(&mut x));
+                crate::on_threads(threads, || tree.solve_in_place(&mut x));
                 solutions.push(x);
             }
             let tolerance = if single { 1e-5 } else { 1e-12 };
