@@ -17,7 +17,10 @@
 //! with `limit = mu F_n` (Coulomb, the *current* normal force of the iterate: no lagged fixed
 //! point) or `limit = tau_max A` (Tresca, while the contact is closed). The tangential penalty
 //! is the normal one, `eps_t = zeta` (Pa/m): the elastic slip in stick is at most `mu` times the
-//! penetration, and it does not drift (an anchor, not a damper). The consistent tangent
+//! penetration, and it does not drift (an anchor, not a damper). Where `zeta A h` exceeds four
+//! times the slave's diagonal of the iteration matrix, the spring is that instead (the contact
+//! methods' `PENALTY_TANGENT_CAP`: a stiffer spring made Newton cycle on stick-slip switches),
+//! and the elastic slip at most `F_t h / (4 diagonal)`, below `F_t h^2 / (4 m)`. The consistent tangent
 //! `d(-F_t)/dw1` is `eps_t A h (I - n n)` in stick and `(limit eps_t A h/|F_tr|)(I - n n - t t)`
 //! in slip; the slip's rank-one coupling of the threshold to the gap, `mu t dF_n/dv1`, is not
 //! symmetric and is left out of the iteration matrix (symmetric quasi-Newton, with

@@ -35,7 +35,8 @@ fn forces_and_tangent(
     let det = sim.caches.detector.as_mut().unwrap();
     det.update_candidates(&x0, &x_gap, &obstacles, &t1);
     let pairs = det.pairs(&x_gap, &obstacles);
-    let diagonal = vec![1.0; n];
+    // The iteration matrix's own diagonal: the tangential springs are measured by it.
+    let diagonal = sim.system_diagonal().to_vec();
     // Implicit projection: every detected point active (its multipliers zero).
     let mut vars = OuterVariables::default();
     if sim.model.contact.method == ContactMethod::ImplicitProjection {
