@@ -73,6 +73,40 @@ fn factor_parallelism(entries: usize) -> Par {
 /// against 4.2 s).
 const SINGLE_PRECISION_DROP: f64 = 1e-12;
 
+/// Elementwise passes over factors (the single-precision rounding and drop) work in chunks of
+/// this many values, on the rayon pool's threads with `parallel`: on the 28^3 Hex8 cube's
+/// contact factors (70M values) they were 2.4 % of a two-thread run's samples, all on one
+/// thread (`perf record` on `contact_perf hex 28`, 2026-11-30).
+const ELEMENTWISE_CHUNK: usize = 1 << 16;
+
+/// The largest magnitude among `values` (exact in any order: the same bits on any thread
+/// count).
+fn largest_magnitude(values: &[f32]) -> f32 {
+    let of = |c: &[f32]| c.iter().fold(0.0f32, |m, v| m.max(v.abs()));
+    #[cfg(feature = "parallel")]
+    {
+        use rayon::prelude::*;
+        values
+            .par_chunks(ELEMENTWISE_CHUNK)
+            .map(of)
+            .reduce(|| 0.0, f32::max)
+    }
+    #[cfg(not(feature = "parallel"))]
+    of(values)
+}
+
+/// Runs `pass` on each chunk of `values` (`ELEMENTWISE_CHUNK` of them), in parallel with
+/// `parallel`.
+fn for_each_chunk(values: &mut [f32], pass: impl Fn(&mut [f32]) + Sync + Send) {
+    #[cfg(feature = "parallel")]
+    {
+        use rayon::prelude::*;
+        values.par_chunks_mut(ELEMENTWISE_CHUNK).for_each(pass);
+    }
+    #[cfg(not(feature = "parallel"))]
+    values.chunks_mut(ELEMENTWISE_CHUNK).for_each(pass);
+}
+
 /// The numeric factor in the precision it was computed in.
 enum Values {
     None,
@@ -262,16 +296,25 @@ impl SparseCholesky {
             Values::Single(v) => v,
             _ => Vec::new(),
         };
+        #[cfg(feature = "parallel")]
+        let rounded: Vec<f32> = {
+            use rayon::prelude::*;
+            matrix.val().par_iter().map(|&v| v as f32).collect()
+        };
+        #[cfg(not(feature = "parallel"))]
         let rounded: Vec<f32> = matrix.val().iter().map(|&v| v as f32).collect();
         let single = faer::sparse::SparseColMatRef::new(matrix.symbolic(), &rounded);
         let mut values = self.factor_values(single, values, step)?;
-        let largest = values.iter().fold(0.0f32, |m, v| m.max(v.abs()));
+        // An exact maximum and an elementwise rule: the same bits in any chunking.
+        let largest = largest_magnitude(&values);
         let floor = (SINGLE_PRECISION_DROP * f64::from(largest)) as f32;
-        for v in &mut values {
-            if v.abs() < floor {
-                *v = 0.0;
+        for_each_chunk(&mut values, |v| {
+            for v in v {
+                if v.abs() < floor {
+                    *v = 0.0;
+                }
             }
-        }
+        });
         self.values = Values::Single(values);
         Ok(())
     }
