@@ -213,7 +213,11 @@ pub enum GapDisplacement {
     /// books a force's work: a penalty on it no longer creates energy at impacts and the
     /// stored penetration is the penalty's, but the contact springs lose the damping the
     /// configuration's offset gave them. Penalty methods only (soft way, augmented
-    /// Lagrangian); the projections always use the configuration.
+    /// Lagrangian); the projections always use the configuration. Under the augmented
+    /// Lagrangian, whose multipliers close these gaps, a pair that ends a step closed and
+    /// still approaching has that normal velocity stopped after the step (the persistency
+    /// condition as a velocity update: Laursen and Love 2002); without it a closed pair
+    /// alternates `w1 = -w0` from step to step, which the scheme does not damp.
     Trapezoid,
 }
 

@@ -614,6 +614,7 @@ where
                 master_point,
                 obstacle,
                 normal_velocity,
+                nodes: nodes.clone(),
                 anchor,
                 carried_by: if is_edge_pair { facet_weights } else { None },
             });

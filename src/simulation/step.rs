@@ -12,7 +12,9 @@ use super::newton::{held_pairs, Solution, StepStart};
 use super::observe::{NullRecorder, Recorder};
 use super::{end_positions, invalid, Simulation, StepReport};
 use crate::assembly;
-use crate::contact::methods::projection::{project, Applied, BodyImpulse, ProjectionContext};
+use crate::contact::methods::projection::{
+    project, update_closed_velocities, Applied, BodyImpulse, ProjectionContext,
+};
 use crate::contact::methods::{self, EndProjection, Method};
 use crate::contact::{
     ContactKey, ContactMethod, ContactPair, GapDisplacement, Master, ProjectionEnergy,
@@ -566,6 +568,43 @@ where
                 // Turning obstacles' impulses also work through their turning.
                 projection_dissipation +=
                     self.spin_work(h, &start.obstacles_t1, applied.iter().copied());
+            }
+            for (total, impulse) in contact_forces.iter_mut().zip(&impulses) {
+                for (t, i) in total.iter_mut().zip(impulse) {
+                    *t += i;
+                }
+            }
+        }
+
+        // The persistency condition of a method that closes its gaps, on trapezoid gaps.
+        if self.gaps_on_trapezoid() && method.closes_gaps() {
+            let v_before = v1.clone();
+            let mut impulses = vec![vec![0.0; D]; self.model.obstacles.len()];
+            let first_applied = applied.len();
+            update_closed_velocities(
+                &terms.pairs,
+                &self.nodal_mass,
+                &self.prescribed,
+                h,
+                &mut v1,
+                &mut impulses,
+                &mut applied,
+                &mut between_bodies,
+            );
+            projection_dissipation += self.projection_dissipation(
+                [&u1, &v_before],
+                [&u1, &v1],
+                f_ext,
+                &impulses,
+                h,
+                material_history,
+            );
+            if self.obstacles_turn() {
+                projection_dissipation += self.spin_work(
+                    h,
+                    &start.obstacles_t1,
+                    applied[first_applied..].iter().copied(),
+                );
             }
             for (total, impulse) in contact_forces.iter_mut().zip(&impulses) {
                 for (t, i) in total.iter_mut().zip(impulse) {

@@ -119,7 +119,7 @@ pub(crate) struct NormalLaw {
 }
 
 /// One pair's forces in an iteration, as the outer updates and the records see them.
-#[derive(Debug, Clone, Copy)]
+#[derive(Debug, Clone)]
 pub(crate) struct PairOutcome<const D: usize> {
     /// The contact.
     pub key: ContactKey,
@@ -139,6 +139,8 @@ pub(crate) struct PairOutcome<const D: usize> {
     pub obstacle: Option<usize>,
     /// The relative normal end velocity (m/s).
     pub normal_velocity: f64,
+    /// The slave and the master's nodes with their weights in the relative velocity.
+    pub nodes: Vec<(usize, f64)>,
     /// The elastic slip after the step (m; return-map laws on closed contacts).
     pub anchor: Option<SVector<f64, D>>,
     /// A projection's edge pair (frictionless): its master facet's nodes and the closest
@@ -249,6 +251,13 @@ pub(crate) trait Method: Sync {
 
     /// Whether the multipliers are carried to the next step.
     fn carries_multipliers(&self) -> bool {
+        false
+    }
+
+    /// Whether its multipliers close the gaps it measures (the augmented Lagrangian): on
+    /// trapezoid gaps its closed pairs then have their relative normal velocity stopped after
+    /// each step ([`projection::update_closed_velocities`]), the persistency condition.
+    fn closes_gaps(&self) -> bool {
         false
     }
 
