@@ -512,10 +512,20 @@ fn ring_drop_with_coulomb_friction_on(method: &str, extra: &[&str]) {
          frictionless: {per_step_0:.2} (at most {most_0}), energy error {error_0:.3e}"
     );
     assert!(steps > 10, "the ring never landed");
+    if !extra.is_empty() {
+        // The augmented Lagrangian on trapezoid gaps: its persistency stops, in the step's
+        // metric, take energy out (measured 56 J of the 1.2 kJ input with Coulomb; stops
+        // sized on the lumped mass put energy in: -3.55 J booked by 0.4 s, frictionless).
+        assert!(
+            dissipated_0 > 0.0,
+            "the frictionless run booked {dissipated_0} J dissipated"
+        );
+    }
     // Implicit projection books its end-of-step projection in the dissipated energy too
     // (negative where it puts energy in), so friction's share cannot be read from the total
     // there; its account is checked below.
-    if method != "implicit_projection" {
+    // So do the augmented Lagrangian's persistency stops on trapezoid gaps.
+    if method != "implicit_projection" && extra.is_empty() {
         assert!(
             dissipated - dissipated_0 > 0.0,
             "no friction dissipation: {dissipated} J against {dissipated_0} J frictionless"
@@ -527,8 +537,8 @@ fn ring_drop_with_coulomb_friction_on(method: &str, extra: &[&str]) {
     // through the landing, 0.4 s, the soft way's was 1.38e-2 at 1e10). The augmented Lagrangian's
     // multipliers close the gaps on the stored configuration, whose offset puts energy in at
     // each bounce: it misses the 1 %.
-    // On trapezoid gaps (`gap_displacement = "trapezoid"`) its account closes to 2.2e-3 with
-    // Coulomb and without.
+    // On trapezoid gaps (`gap_displacement = "trapezoid"`) its account closes to 3.7e-3 with
+    // Coulomb and without (measured 2026-11-30).
     let (added, bound) = match method {
         "augmented_lagrangian" if extra.is_empty() => (2e-3, 4e-2),
         _ => (1e-3, 1e-2),

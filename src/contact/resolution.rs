@@ -215,8 +215,9 @@ pub enum GapDisplacement {
     /// configuration's offset gave them. Penalty methods only (soft way, augmented
     /// Lagrangian); the projections always use the configuration. Under the augmented
     /// Lagrangian, whose multipliers close these gaps, a pair that ends a step closed and
-    /// still approaching has that normal velocity stopped after the step (the persistency
-    /// condition as a velocity update: Laursen and Love 2002); without it a closed pair
+    /// still approaching has that normal velocity stopped after the step, by the smallest
+    /// change of the velocities in the step's metric (the persistency condition as a velocity
+    /// update, after Laursen and Love 2002; booked as dissipation); without it a closed pair
     /// alternates `w1 = -w0` from step to step, which the scheme does not damp.
     Trapezoid,
 }

@@ -12,12 +12,10 @@ use super::newton::{held_pairs, Solution, StepStart};
 use super::observe::{NullRecorder, Recorder};
 use super::{end_positions, invalid, Simulation, StepReport};
 use crate::assembly;
-use crate::contact::methods::projection::{
-    project, update_closed_velocities, Applied, BodyImpulse, ProjectionContext,
-};
+use crate::contact::methods::projection::{project, Applied, BodyImpulse, ProjectionContext};
 use crate::contact::methods::{self, EndProjection, Method};
 use crate::contact::{
-    ContactKey, ContactMethod, ContactPair, GapDisplacement, Master, ProjectionEnergy,
+    ContactKey, ContactMethod, ContactPair, GapDisplacement, Master, MasterId, ProjectionEnergy,
     ProjectionMetric,
 };
 use crate::dim::{Dim, SpatialDim};
@@ -581,16 +579,17 @@ where
             let v_before = v1.clone();
             let mut impulses = vec![vec![0.0; D]; self.model.obstacles.len()];
             let first_applied = applied.len();
-            update_closed_velocities(
-                &terms.pairs,
-                &self.nodal_mass,
-                &self.prescribed,
-                h,
-                &mut v1,
-                &mut impulses,
-                &mut applied,
-                &mut between_bodies,
-            );
+            for (key, point, force) in self.stop_closed_pairs(&terms.pairs, &mut v1, h, step)? {
+                match key.1 {
+                    MasterId::Obstacle(k) => {
+                        for (total, f) in impulses[k].iter_mut().zip(force.iter()) {
+                            *total += f;
+                        }
+                        applied.push((k, point, force));
+                    }
+                    MasterId::Body(b) => between_bodies.push((key.0, b, force)),
+                }
+            }
             projection_dissipation += self.projection_dissipation(
                 [&u1, &v_before],
                 [&u1, &v1],

@@ -20,12 +20,17 @@
 use nalgebra::{DMatrix, DVector, SVector};
 
 use super::Simulation;
-use crate::contact::{ContactPair, Master, ProjectionMetric};
+use crate::contact::methods::PairOutcome;
+use crate::contact::{ContactKey, ContactPair, Master, ProjectionMetric};
 use crate::dim::{Dim, SpatialDim};
 use crate::error::Result;
 
 /// One constraint: its dofs with their coefficients (G_c), its gap (m), its penalty.
 type Constraint = (Vec<(usize, f64)>, f64, f64);
+
+/// A stopped pair: the contact, the master point (m) and the impulse as a force over the
+/// step on the slave (N).
+pub(super) type StoppedPair<const D: usize> = (ContactKey, SVector<f64, D>, SVector<f64, D>);
 
 /// The penalty that imposes the projection, relative to the largest diagonal of its rows.
 const PENALTY: f64 = 1e4;
@@ -111,8 +116,27 @@ where
         if rows.is_empty() {
             return Ok(du);
         }
+        let (elastic, _) = self.metric_projection(&rows, h, step)?;
+        for (d, e) in du.iter_mut().zip(&elastic) {
+            *d += e;
+        }
+        Ok(du)
+    }
+
+    /// The smallest change `du` in the step's metric `S` with `G_c du = -gap_c` for every row
+    /// c (imposed by each row's penalty and one Uzawa correction), prescribed components
+    /// unmoved, and each row's multiplier: `S du = sum_c G_c^T m_c`, so that `m_c` is the
+    /// impulse (N s) the row's constraint applies along `G_c` when `du` is a velocity change
+    /// times h.
+    pub(super) fn metric_projection(
+        &mut self,
+        rows: &[Constraint],
+        h: f64,
+        step: usize,
+    ) -> Result<(Vec<f64>, Vec<f64>)> {
+        let ndof = self.nodal_mass.len() * D;
         let mut entries = Vec::new();
-        for (g, _, rho) in &rows {
+        for (g, _, rho) in rows {
             for &(i, a) in g {
                 for &(j, b) in g {
                     if i >= j {
@@ -143,12 +167,63 @@ where
                 *m -= rho * (gap + moved);
             }
         }
-        for (i, d) in du.iter_mut().enumerate() {
-            if self.prescribed[i].is_none() {
-                *d += elastic[i];
+        for (i, e) in elastic.iter_mut().enumerate() {
+            if self.prescribed[i].is_some() {
+                *e = 0.0;
             }
         }
-        Ok(du)
+        Ok((elastic, multipliers))
+    }
+
+    /// The augmented Lagrangian's persistency stop on trapezoid gaps: every pair of `pairs`
+    /// that ends the step closed (a normal force pushing it out) and still approaching has
+    /// that relative normal velocity removed from `v1` by the smallest change in the step's
+    /// metric (the one implicit projection's end-of-step correction takes), so that the
+    /// consistent mass and the stiffness share it as the step itself would. On trapezoid
+    /// gaps, which the multipliers hold closed, such a pair otherwise alternates `w1 = -w0`
+    /// from step to step, which the scheme does not damp. Returns each stopped pair with its
+    /// impulse as a force over the step on the slave (N).
+    pub(super) fn stop_closed_pairs(
+        &mut self,
+        pairs: &[PairOutcome<D>],
+        v1: &mut [f64],
+        h: f64,
+        step: usize,
+    ) -> Result<Vec<StoppedPair<D>>> {
+        let diagonal = self.system_diagonal().to_vec();
+        let mut rows: Vec<Constraint> = Vec::new();
+        let mut stopped = Vec::new();
+        for p in pairs {
+            if p.normal_force <= 0.0 || p.normal_velocity >= 0.0 {
+                continue;
+            }
+            let mut g: Vec<(usize, f64)> = p
+                .nodes
+                .iter()
+                .flat_map(|&(node, c)| (0..D).map(move |k| (node * D + k, c)))
+                .map(|(i, c)| (i, c * p.normal[i % D]))
+                .collect();
+            g.retain(|&(i, c)| c != 0.0 && self.prescribed[i].is_none());
+            if g.is_empty() {
+                continue;
+            }
+            let rho = PENALTY * g.iter().map(|&(i, _)| diagonal[i]).fold(0.0, f64::max);
+            // In displacement units: the step's travel at that velocity.
+            rows.push((g, h * p.normal_velocity, rho));
+            stopped.push(p);
+        }
+        if rows.is_empty() {
+            return Ok(Vec::new());
+        }
+        let (du, multipliers) = self.metric_projection(&rows, h, step)?;
+        for (v, d) in v1.iter_mut().zip(&du) {
+            *v += d / h;
+        }
+        Ok(stopped
+            .iter()
+            .zip(&multipliers)
+            .map(|(p, m)| (p.key, p.master_point, p.normal * (m / h)))
+            .collect())
     }
 
     /// The rigid motion of each body (translation, and small rotation about the mean contact

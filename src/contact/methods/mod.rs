@@ -255,8 +255,9 @@ pub(crate) trait Method: Sync {
     }
 
     /// Whether its multipliers close the gaps it measures (the augmented Lagrangian): on
-    /// trapezoid gaps its closed pairs then have their relative normal velocity stopped after
-    /// each step ([`projection::update_closed_velocities`]), the persistency condition.
+    /// trapezoid gaps its closed pairs that still approach then have that relative normal
+    /// velocity stopped after each step (`Simulation::stop_closed_pairs`), the persistency
+    /// condition.
     fn closes_gaps(&self) -> bool {
         false
     }

@@ -7,7 +7,7 @@ use std::collections::BTreeSet;
 
 use nalgebra::SVector;
 
-use super::{EndProjection, PairOutcome};
+use super::EndProjection;
 use crate::contact::{ContactKey, ContactPair, Master, MasterId};
 
 /// What the projection reads.
@@ -149,80 +149,6 @@ pub(crate) fn project<const D: usize>(
                     Master::Facet(facet) => between_bodies.push((s, ctx.facet_body[facet], f)),
                 }
             }
-        }
-    }
-}
-
-/// Laursen and Love's velocity update (2002) on the pairs that end a step closed (a normal
-/// force pushing them apart): the persistency condition (a pressing pair's gap rate is
-/// zero) applied after the step, each such pair's approaching relative normal end velocity
-/// stopped by one normal impulse shared by mass between the slave and its master's nodes (a rigid master
-/// takes none of it; prescribed components do not move; a massless side, a quasi-static
-/// flow, has no velocity to stop). On trapezoid gaps, which a multiplier holds closed, a
-/// closed pair otherwise alternates `w1 = -w0` from step to step, which the scheme does not
-/// damp. The impulses are added, as forces over the step, to `impulses` (per obstacle) and
-/// `applied` (with the point they act at), or to `between_bodies`.
-#[allow(clippy::too_many_arguments)]
-pub(crate) fn update_closed_velocities<const D: usize>(
-    pairs: &[PairOutcome<D>],
-    nodal_mass: &[f64],
-    prescribed: &[Option<f64>],
-    time_step: f64,
-    v1: &mut [f64],
-    impulses: &mut [Vec<f64>],
-    applied: &mut Vec<Applied<D>>,
-    between_bodies: &mut Vec<BodyImpulse<D>>,
-) {
-    let solved = v1.to_vec();
-    for p in pairs.iter().filter(|p| p.normal_force > 0.0) {
-        let n = p.normal;
-        let free = |node: usize, k: usize| prescribed[node * D + k].is_none();
-        if p.nodes.iter().any(|&(node, _)| nodal_mass[node] <= 0.0) {
-            continue;
-        }
-        let inverse_mass: f64 = p
-            .nodes
-            .iter()
-            .map(|&(node, c)| {
-                c * c
-                    * (0..D)
-                        .filter(|&k| free(node, k))
-                        .map(|k| n[k] * n[k])
-                        .sum::<f64>()
-                    / nodal_mass[node]
-            })
-            .sum();
-        if inverse_mass <= 0.0 {
-            continue;
-        }
-        // The relative normal end velocity now (earlier pairs may have moved shared nodes).
-        let mut normal_velocity = p.normal_velocity;
-        for &(node, c) in &p.nodes {
-            for k in 0..D {
-                normal_velocity += c * n[k] * (v1[node * D + k] - solved[node * D + k]);
-            }
-        }
-        if normal_velocity >= 0.0 {
-            // Separating: a pair that opens keeps its velocity (its force is going to zero).
-            continue;
-        }
-        let impulse = -normal_velocity / inverse_mass;
-        for &(node, c) in &p.nodes {
-            for k in 0..D {
-                if free(node, k) {
-                    v1[node * D + k] += c * impulse * n[k] / nodal_mass[node];
-                }
-            }
-        }
-        let force = n * (impulse / time_step);
-        match p.key.1 {
-            MasterId::Obstacle(k) => {
-                for (total, f) in impulses[k].iter_mut().zip(force.iter()) {
-                    *total += f;
-                }
-                applied.push((k, p.master_point, force));
-            }
-            MasterId::Body(b) => between_bodies.push((p.key.0, b, force)),
         }
     }
 }
