@@ -55,6 +55,7 @@ pub mod instantiations;
 pub mod io;
 pub mod material;
 pub mod mesh;
+mod parallel;
 pub mod recording;
 pub mod simulation;
 #[cfg(feature = "internals")]

@@ -380,14 +380,8 @@ fn chunked_mul_add(a: &SparseColMat<usize, f64>, x: &[f64], s: f64, y: &mut [f64
         lower_columns_mul_add(a, x, s, first..end, &mut buffer, first);
         buffer
     };
-    #[cfg(feature = "parallel")]
-    let buffers: Vec<Vec<f64>> = {
-        use rayon::prelude::*;
-        (0..PRODUCT_CHUNKS).into_par_iter().map(chunk).collect()
-    };
-    #[cfg(not(feature = "parallel"))]
-    let buffers: Vec<Vec<f64>> = (0..PRODUCT_CHUNKS).map(chunk).collect();
-    let add_rows = |(block, rows): (usize, &mut [f64])| {
+    let buffers: Vec<Vec<f64>> = crate::parallel::map_indices(PRODUCT_CHUNKS, chunk);
+    let add_rows = |block: usize, rows: &mut [f64]| {
         let start = block * ROW_BLOCK;
         for (c, buffer) in buffers.iter().enumerate() {
             let first = bounds[c];
@@ -399,13 +393,7 @@ fn chunked_mul_add(a: &SparseColMat<usize, f64>, x: &[f64], s: f64, y: &mut [f64
         }
     };
     const ROW_BLOCK: usize = 1 << 14;
-    #[cfg(feature = "parallel")]
-    {
-        use rayon::prelude::*;
-        y.par_chunks_mut(ROW_BLOCK).enumerate().for_each(add_rows);
-    }
-    #[cfg(not(feature = "parallel"))]
-    y.chunks_mut(ROW_BLOCK).enumerate().for_each(add_rows);
+    crate::parallel::for_each_chunk_mut(y, ROW_BLOCK, add_rows);
 }
 
 /// `y[i - first] += s (A x)_i` restricted to the stored entries of `columns` (lower triangle,

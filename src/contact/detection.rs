@@ -297,27 +297,16 @@ const GROUP: usize = 8;
 /// Candidate pairs of the slaves `slaves[start..start + chunk.len()]`.
 type Chunk = Vec<(usize, Master)>;
 
-#[cfg(feature = "parallel")]
+/// `f` over `items` in chunks of 512 (each given its first item's index), the results
+/// flattened in order.
 fn map_chunks<T: Sync, R: Send>(
     items: &[T],
     f: impl Fn(usize, &[T]) -> Vec<R> + Sync + Send,
 ) -> Vec<R> {
-    use rayon::prelude::*;
-    const CHUNK: usize = 512;
-    let parts: Vec<Vec<R>> = items
-        .par_chunks(CHUNK)
-        .enumerate()
-        .map(|(i, c)| f(i * CHUNK, c))
-        .collect();
-    parts.into_iter().flatten().collect()
-}
-
-#[cfg(not(feature = "parallel"))]
-fn map_chunks<T: Sync, R: Send>(
-    items: &[T],
-    f: impl Fn(usize, &[T]) -> Vec<R> + Sync + Send,
-) -> Vec<R> {
-    f(0, items)
+    crate::parallel::map_chunks(items, 512, f)
+        .into_iter()
+        .flatten()
+        .collect()
 }
 
 impl<const D: usize> Detector<D>

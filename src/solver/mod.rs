@@ -82,29 +82,17 @@ const ELEMENTWISE_CHUNK: usize = 1 << 16;
 /// The largest magnitude among `values` (exact in any order: the same bits on any thread
 /// count).
 fn largest_magnitude(values: &[f32]) -> f32 {
-    let of = |c: &[f32]| c.iter().fold(0.0f32, |m, v| m.max(v.abs()));
-    #[cfg(feature = "parallel")]
-    {
-        use rayon::prelude::*;
-        values
-            .par_chunks(ELEMENTWISE_CHUNK)
-            .map(of)
-            .reduce(|| 0.0, f32::max)
-    }
-    #[cfg(not(feature = "parallel"))]
-    of(values)
+    crate::parallel::map_chunks(values, ELEMENTWISE_CHUNK, |_, c| {
+        c.iter().fold(0.0f32, |m, v| m.max(v.abs()))
+    })
+    .into_iter()
+    .fold(0.0, f32::max)
 }
 
 /// Runs `pass` on each chunk of `values` (`ELEMENTWISE_CHUNK` of them), in parallel with
 /// `parallel`.
 fn for_each_chunk(values: &mut [f32], pass: impl Fn(&mut [f32]) + Sync + Send) {
-    #[cfg(feature = "parallel")]
-    {
-        use rayon::prelude::*;
-        values.par_chunks_mut(ELEMENTWISE_CHUNK).for_each(pass);
-    }
-    #[cfg(not(feature = "parallel"))]
-    values.chunks_mut(ELEMENTWISE_CHUNK).for_each(pass);
+    crate::parallel::for_each_chunk_mut(values, ELEMENTWISE_CHUNK, |_, c| pass(c));
 }
 
 /// The numeric factor in the precision it was computed in.
@@ -296,13 +284,7 @@ impl SparseCholesky {
             Values::Single(v) => v,
             _ => Vec::new(),
         };
-        #[cfg(feature = "parallel")]
-        let rounded: Vec<f32> = {
-            use rayon::prelude::*;
-            matrix.val().par_iter().map(|&v| v as f32).collect()
-        };
-        #[cfg(not(feature = "parallel"))]
-        let rounded: Vec<f32> = matrix.val().iter().map(|&v| v as f32).collect();
+        let rounded: Vec<f32> = crate::parallel::map_each(matrix.val(), |&v| v as f32);
         let single = faer::sparse::SparseColMatRef::new(matrix.symbolic(), &rounded);
         let mut values = self.factor_values(single, values, step)?;
         // An exact maximum and an elementwise rule: the same bits in any chunking.

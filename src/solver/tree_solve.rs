@@ -19,6 +19,8 @@ use faer::linalg::triangular_solve::{
 use faer::sparse::linalg::cholesky::supernodal::SymbolicSupernodalCholesky;
 use faer::{Accum, MatMut, MatRef, Par};
 
+use crate::parallel::for_each_job;
+
 /// The factor's precisions (f64, f32).
 pub(super) trait Real:
     faer::traits::RealField
@@ -324,17 +326,6 @@ fn below_times<T: Real>(
             Par::Seq,
         );
     }
-}
-
-/// Runs `run` on each job: on the rayon pool's threads with the feature `parallel`.
-fn for_each_job<J: Send>(jobs: Vec<J>, run: impl Fn(J) + Send + Sync) {
-    #[cfg(feature = "parallel")]
-    {
-        use rayon::prelude::*;
-        jobs.into_par_iter().for_each(run);
-    }
-    #[cfg(not(feature = "parallel"))]
-    jobs.into_iter().for_each(run);
 }
 
 /// Supernode `s` going up: its rows below (`gathered`) subtracted through `L^T`, then its
