@@ -179,7 +179,8 @@ where
     /// that ends the step closed (a normal force pushing it out) and still approaching has
     /// that relative normal velocity removed from `v1` by the smallest change in the step's
     /// metric (the one implicit projection's end-of-step correction takes), so that the
-    /// consistent mass and the stiffness share it as the step itself would. On trapezoid
+    /// consistent mass and the stiffness share it as the step itself would (pairs with a
+    /// massless side are left alone). On trapezoid
     /// gaps, which the multipliers hold closed, such a pair otherwise alternates `w1 = -w0`
     /// from step to step, which the scheme does not damp. Returns each stopped pair with its
     /// impulse as a force over the step on the slave (N).
@@ -195,6 +196,14 @@ where
         let mut stopped = Vec::new();
         for p in pairs {
             if p.normal_force <= 0.0 || p.normal_velocity >= 0.0 {
+                continue;
+            }
+            if p.nodes
+                .iter()
+                .any(|&(node, _)| self.nodal_mass[node] <= 0.0)
+            {
+                // A massless side (a quasi-static flow): no velocity of its own to stop, and
+                // the metric has no mass to share the change by.
                 continue;
             }
             let mut g: Vec<(usize, f64)> = p
