@@ -632,9 +632,14 @@ where
         // a 73k-unknown cube; the performance chapter, Memory). The state names it until the
         // new one is kept; should no factorisation succeed, the next attempt's
         // `sync_contact_factors` makes it again, the same bits.
+        // Its storage is the new one's (no new allocation to zero and fault in).
+        let mut spare = None;
         if self.state.contact_memory.factors.len() >= CONTACT_FACTORS_KEPT {
             if let Some(oldest) = self.state.contact_memory.factors.last().map(|r| r.id) {
-                self.caches.contact_factors.retain(|f| f.id != oldest);
+                let factors = &mut self.caches.contact_factors;
+                if let Some(at) = factors.iter().position(|f| f.id == oldest) {
+                    spare = Some(factors.remove(at).cholesky);
+                }
             }
         }
         let mut candidates = Vec::new();
@@ -650,6 +655,9 @@ where
             let kept = index == 0;
             let matrix = self.contact_matrix(&self.system().matrix, entries)?;
             let mut cholesky = self.analysis_for(&matrix)?;
+            if let Some(donor) = spare.take() {
+                cholesky.reuse_storage_of(donor);
+            }
             if !self.state.contact_memory.double_precision_only
                 && self
                     .counted(|| cholesky.factor_single(&matrix, step))

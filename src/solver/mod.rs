@@ -219,6 +219,16 @@ impl SparseCholesky {
         }
     }
 
+    /// Takes over the value storage of `donor`, a factorisation no longer needed, where this
+    /// one has no factor yet: the next numeric factorisation in the donor's precision writes
+    /// over that storage instead of allocating a new one, zeroing it and faulting its pages in
+    /// (every value is written: the same bits).
+    pub fn reuse_storage_of(&mut self, donor: SparseCholesky) {
+        if matches!(self.values, Values::None) {
+            self.values = donor.values;
+        }
+    }
+
     /// The same analysis solved by the tree-split solve whatever its size (tests of small
     /// factors); `None` when the tree has nothing to split.
     #[cfg(test)]
