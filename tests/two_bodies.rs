@@ -140,18 +140,28 @@ fn a_stack_under_the_augmented_lagrangian<const D: usize>()
 where
     Dim<D>: SpatialDim<D>,
 {
+    stack_holds::<D>(
+        ContactMethod::AugmentedLagrangian,
+        GapDisplacement::Configuration,
+        2e-3,
+    );
+}
+
+/// The stack under `method` on `gaps`: its account within 2e-2 after the landing, no sideways
+/// momentum made between the blocks, and no gap deeper than `deepest` (m).
+fn stack_holds<const D: usize>(method: ContactMethod, gaps: GapDisplacement, deepest: f64)
+where
+    Dim<D>: SpatialDim<D>,
+{
     let Stack {
         penetration,
         error,
         sideways,
         ..
-    } = stack::<D>(
-        ContactMethod::AugmentedLagrangian,
-        GapDisplacement::Configuration,
-    );
+    } = stack::<D>(method, gaps);
     assert!(error < 2e-2, "energy error {error}");
     assert!(sideways < 1e-8, "sideways momentum created: {sideways:e}");
-    assert!(penetration < 2e-3, "penetration {penetration}");
+    assert!(penetration < deepest, "penetration {penetration}");
 }
 
 fn a_stack_under_the_soft_way<const D: usize>()
@@ -215,15 +225,23 @@ fn trapezoid_gaps_keep_the_stack_apart<const D: usize>()
 where
     Dim<D>: SpatialDim<D>,
 {
-    let Stack {
-        penetration,
-        error,
-        sideways,
-        ..
-    } = stack::<D>(ContactMethod::SoftWay, GapDisplacement::Trapezoid);
-    assert!(penetration < 1e-4, "penetration {penetration}");
-    assert!(error < 2e-2, "energy error {error}");
-    assert!(sideways < 1e-8, "sideways momentum created: {sideways:e}");
+    stack_holds::<D>(ContactMethod::SoftWay, GapDisplacement::Trapezoid, 1e-4);
+}
+
+/// The same stack under the augmented Lagrangian on trapezoid gaps (its persistency stop on):
+/// Uzawa closes the gaps it measures, so the blocks stay apart to its gap tolerance. Measured
+/// (2026-11-30) 1.7e-9 m (2D) and 8.4e-9 m (3D), against 2.9e-4 m on the paper's configuration
+/// gaps; the account at most 1.7e-2 / 1.4e-2 after the landing, 3.8e-3 / 5.6e-3 at the end;
+/// 4650 / 7433 Newton iterations (the soft way's 1689 / 2198).
+fn trapezoid_gaps_keep_the_augmented_lagrangian_stack_apart<const D: usize>()
+where
+    Dim<D>: SpatialDim<D>,
+{
+    stack_holds::<D>(
+        ContactMethod::AugmentedLagrangian,
+        GapDisplacement::Trapezoid,
+        1e-7,
+    );
 }
 
 /// The ring drop's ring (radii 0.8 and 1 m, 64 x 4 Quad4, E = 5e7 Pa, 1000 kg/m^3, plane
@@ -446,6 +464,10 @@ mod d2 {
     fn trapezoid_gaps_keep_the_stack_apart() {
         super::trapezoid_gaps_keep_the_stack_apart::<2>();
     }
+    #[test]
+    fn trapezoid_gaps_keep_the_augmented_lagrangian_stack_apart() {
+        super::trapezoid_gaps_keep_the_augmented_lagrangian_stack_apart::<2>();
+    }
     /// Uzawa with a fixed zeta (the paper's) needed over 50 iterations at the second landing
     /// (t = 0.104 s); with the default growing penalty it runs to the end.
     #[test]
@@ -515,6 +537,14 @@ mod d3 {
     )]
     fn trapezoid_gaps_keep_the_stack_apart() {
         super::trapezoid_gaps_keep_the_stack_apart::<3>();
+    }
+    #[test]
+    #[cfg_attr(
+        not(feature = "parallel"),
+        ignore = "slow without threads: runs with the default features"
+    )]
+    fn trapezoid_gaps_keep_the_augmented_lagrangian_stack_apart() {
+        super::trapezoid_gaps_keep_the_augmented_lagrangian_stack_apart::<3>();
     }
     /// The stack with Coulomb 0.5 under implicit projection. It stopped at step 142, then (with
     /// active edge pairs held through their step) at 191: about ten slipping points reversed
