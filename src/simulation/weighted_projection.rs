@@ -179,11 +179,11 @@ where
     /// that ends the step closed (a normal force pushing it out) and still approaching has
     /// that relative normal velocity removed from `v1` by the smallest change in the step's
     /// metric (the one implicit projection's end-of-step correction takes), so that the
-    /// consistent mass and the stiffness share it as the step itself would (pairs with a
-    /// massless side are left alone). On trapezoid
-    /// gaps, which the multipliers hold closed, such a pair otherwise alternates `w1 = -w0`
-    /// from step to step, which the scheme does not damp. Returns each stopped pair with its
-    /// impulse as a force over the step on the slave (N).
+    /// consistent mass and the stiffness share it as the step itself would; pairs with a
+    /// massless side are left alone. On trapezoid gaps, which the multipliers hold closed,
+    /// such a pair otherwise alternates `w1 = -w0` from step to step, which the scheme does
+    /// not damp. Returns each stopped pair with its impulse as a force over the step on the
+    /// slave (N).
     pub(super) fn stop_closed_pairs(
         &mut self,
         pairs: &[PairOutcome<D>],
