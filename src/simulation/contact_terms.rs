@@ -614,7 +614,13 @@ where
                 master_point,
                 obstacle,
                 normal_velocity,
-                nodes: nodes.clone(),
+                // Read only by the persistency stop after the step: no copy on the Newton
+                // iterations of the other methods.
+                nodes: if input.method.closes_gaps() {
+                    nodes.clone()
+                } else {
+                    Vec::new()
+                },
                 anchor,
                 carried_by: if is_edge_pair { facet_weights } else { None },
             });

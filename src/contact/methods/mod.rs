@@ -139,7 +139,8 @@ pub(crate) struct PairOutcome<const D: usize> {
     pub obstacle: Option<usize>,
     /// The relative normal end velocity (m/s).
     pub normal_velocity: f64,
-    /// The slave and the master's nodes with their weights in the relative velocity.
+    /// The slave and the master's nodes with their weights in the relative velocity (only for
+    /// a method that closes its gaps, [`Method::closes_gaps`]; empty otherwise).
     pub nodes: Vec<(usize, f64)>,
     /// The elastic slip after the step (m; return-map laws on closed contacts).
     pub anchor: Option<SVector<f64, D>>,
