@@ -151,18 +151,14 @@ struct Array {
 impl Array {
     fn f64s(&self) -> Vec<f64> {
         assert_eq!(self.attributes["type"], "Float64");
-        let chunks = self.bytes.chunks_exact(8);
-        chunks
-            .map(|c| f64::from_le_bytes(c.try_into().unwrap()))
-            .collect()
+        let (chunks, _) = self.bytes.as_chunks::<8>();
+        chunks.iter().map(|&c| f64::from_le_bytes(c)).collect()
     }
 
     fn u64s(&self) -> Vec<u64> {
         assert_eq!(self.attributes["type"], "UInt64");
-        let chunks = self.bytes.chunks_exact(8);
-        chunks
-            .map(|c| u64::from_le_bytes(c.try_into().unwrap()))
-            .collect()
+        let (chunks, _) = self.bytes.as_chunks::<8>();
+        chunks.iter().map(|&c| u64::from_le_bytes(c)).collect()
     }
 
     fn components(&self) -> usize {

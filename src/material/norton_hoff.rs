@@ -278,3 +278,57 @@ mod definiteness {
         }
     }
 }
+
+/// The tube crush's point that Rust 1.95 and 1.96 compiled wrong at opt-level 3
+/// (`rust-toolchain.toml`): the release build gave the viscosity's (zz, hoop) entry the value
+/// of the outer product's (hoop, hoop) entry, -1.72e8 instead of 2.90e7 Pa s, and an
+/// indefinite tangent. The tests run at opt-level 1; `cargo test --release` runs this one as
+/// the release build computes it.
+#[cfg(test)]
+mod release_build {
+    use super::*;
+    use crate::dim::Kinematics;
+    use nalgebra::Matrix3;
+
+    #[test]
+    fn the_tube_crush_viscosity_is_computed_as_written() {
+        let law = NortonHoff::new(8e7, 0.1, 7800.0, 1e7).unwrap();
+        let rate = Voigt::new(
+            -0.3245445175997803,
+            -0.6737641315619131,
+            -0.17008311707272433,
+            0.0,
+            0.0,
+            -0.11870385838363173,
+        );
+        let p = PointKinematics {
+            kinematics: Kinematics::Axisymmetric,
+            strain: Voigt::zeros(),
+            strain_rate: rate,
+            spin: Matrix3::zeros(),
+            time_step: 1e-6,
+            alpha: 0.75,
+            increment: Matrix3::zeros(),
+            end_increment: Matrix3::zeros(),
+            secant: false,
+        };
+        let v = law.evaluate(&p, &[0.0], &mut [0.0]).viscosity;
+        // By hand: 2 mu (-1/3) + bulk + 4/3 (m - 1) mu d_zz d_hoop / eq^2, written out.
+        let trace = rate[0] + rate[1] + rate[2];
+        let (d_zz, d_hoop) = (rate[1] - trace / 3.0, rate[2] - trace / 3.0);
+        let d_rz = 0.5 * rate[5];
+        let d_rr = rate[0] - trace / 3.0;
+        let eq2 = 2.0 / 3.0 * (d_rr * d_rr + d_zz * d_zz + d_hoop * d_hoop + 2.0 * d_rz * d_rz)
+            + DEFAULT_RATE_REGULARIZATION.powi(2);
+        let mu = 8e7 * (3.0 * eq2).sqrt().powf(0.1 - 1.0);
+        let expected = -2.0 / 3.0 * mu + 1e7 + 4.0 / 3.0 * (0.1 - 1.0) * mu * d_zz * d_hoop / eq2;
+        for (i, j) in [(1, 2), (2, 1)] {
+            assert!(
+                (v[(i, j)] / expected - 1.0).abs() < 1e-12,
+                "entry ({i}, {j}): {:e} against {expected:e}",
+                v[(i, j)]
+            );
+        }
+        assert!(v.symmetric_eigen().eigenvalues.min() > 0.0);
+    }
+}

@@ -118,7 +118,7 @@ fn v22_nodes_binary(cur: &mut Cursor<'_>) -> Result<NodesAndMap, GmshError> {
         .ok_or_else(|| cur.truncated(SEC, format!("{n} binary node records of {REC} bytes")))?;
     let mut nodes = Vec::with_capacity(n);
     let mut map = HashMap::with_capacity(n);
-    for (i, rec) in data.chunks_exact(REC).enumerate() {
+    for (i, rec) in data.as_chunks::<REC>().0.iter().enumerate() {
         let at = start + i * REC;
         let tag = cur.i32_at(rec);
         let tag = usize::try_from(tag).map_err(|_| GmshError::Binary {
@@ -269,7 +269,12 @@ fn v22_elements_binary(
             .and_then(|len| cur.take(len))
             .ok_or_else(|| cur.truncated(SEC, format!("{count} element records of type {ty}")))?;
         for (k, rec) in data.chunks_exact(4 * rec_ints).enumerate() {
-            let ints: Vec<i32> = rec.chunks_exact(4).map(|c| cur.i32_at(c)).collect();
+            let ints: Vec<i32> = rec
+                .as_chunks::<4>()
+                .0
+                .iter()
+                .map(|c| cur.i32_at(c))
+                .collect();
             let rec_at = start + k * 4 * rec_ints;
             let elm = usize::try_from(ints[0]).map_err(|_| GmshError::Binary {
                 offset: rec_at,
