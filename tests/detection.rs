@@ -66,6 +66,55 @@ dims! {
     folding_strip_finds_self_contact => folding_strip;
     thin_body_fast_is_caught => thin_body_fast;
     a_node_beside_its_own_corner_touches_nothing => node_beside_own_corner;
+    a_lone_body_without_self_contact_queries_no_facets => lone_body;
+}
+
+/// One body without self-contact: no facet can be a master, so the broad phase builds no
+/// facet hierarchy (a third of a small cube's run went to it), and the candidates are the
+/// obstacle candidates that the full search finds.
+fn lone_body<const D: usize>()
+where
+    Dim<D>: SpatialDim<D> + TestDim<D>,
+{
+    let mut rng = ChaCha8Rng::seed_from_u64(7);
+    let mesh = <Dim<D>>::block([0.0; D], [1.0; D], [4; D], true);
+    let x0 = mesh.nodes.clone();
+    let x1: Vec<SVector<f64, D>> = x0
+        .iter()
+        .map(|x| x + SVector::<f64, D>::from_fn(|_, _| rng.random_range(-0.2..0.05)))
+        .collect();
+    let obstacles = vec![Obstacle::new(
+        "floor",
+        ObstacleShape::Halfspace {
+            point: e::<D>(D - 1) * 0.1,
+            normal: e::<D>(D - 1),
+        },
+    )];
+    let poses = vec![SVector::<f64, D>::zeros()];
+    let options = |self_contact| DetectionOptions {
+        self_contact,
+        margin: 0.3,
+        deformable_pairs: true,
+        hysteresis: 0.0,
+        facing: false,
+        lock_flipping_facets: false,
+    };
+    let surface = ContactSurface::from_bodies(&[&mesh], &[0]);
+    let mut lone = Detector::new(surface.clone(), options(false));
+    lone.update_candidates(&x0, &x1, &obstacles, &poses);
+    let mut full = Detector::new(surface, options(true));
+    full.update_candidates(&x0, &x1, &obstacles, &poses);
+    assert!(lone.facet_boxes().is_empty());
+    assert!(!full.facet_boxes().is_empty());
+    let obstacle_candidates: Vec<_> = full
+        .candidates()
+        .iter()
+        .filter(|(_, m)| matches!(m, Master::Obstacle(_)))
+        .copied()
+        .collect();
+    assert!(!obstacle_candidates.is_empty());
+    assert!(full.candidates().len() > obstacle_candidates.len());
+    assert_eq!(lone.candidates(), &obstacle_candidates[..]);
 }
 
 fn e<const D: usize>(k: usize) -> SVector<f64, D> {

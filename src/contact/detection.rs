@@ -379,7 +379,8 @@ where
         self.flips.clear();
     }
 
-    /// The swept box of every facet at the last update (m; the broad phase's leaves).
+    /// The swept box of every facet at the last update (m; the broad phase's leaves): empty
+    /// when no facet can be a master (one body, no self-contact).
     pub fn facet_boxes(&self) -> &[Aabb<D>] {
         &self.facet_boxes
     }
@@ -468,20 +469,31 @@ where
             "positions shorter than the surface's nodes"
         );
         let margin = self.options.margin.max(0.0);
-        self.facet_boxes = map_chunks(&self.surface.facets, |_, fs| {
-            fs.iter()
-                .map(|f| {
-                    Aabb::from_points(f.iter().map(|&i| &x0[i]).chain(f.iter().map(|&i| &x1[i])))
+        // Facets are masters only of self-contact and of other bodies' nodes: a lone body
+        // against obstacles needs no hierarchy (a third of a small cube's step went to it).
+        let facet_masters = self.options.self_contact
+            || (self.options.deformable_pairs && self.surface.has_several_bodies());
+        self.facet_boxes = if facet_masters {
+            map_chunks(&self.surface.facets, |_, fs| {
+                fs.iter()
+                    .map(|f| {
+                        Aabb::from_points(
+                            f.iter().map(|&i| &x0[i]).chain(f.iter().map(|&i| &x1[i])),
+                        )
                         .loosened(margin)
-                })
-                .collect()
-        });
+                    })
+                    .collect()
+            })
+        } else {
+            Vec::new()
+        };
         match &mut self.tree {
+            _ if !facet_masters => self.tree = None,
             Some(t) if t.len() == self.facet_boxes.len() => t.refit(&self.facet_boxes),
             _ => self.tree = Some(BoxTree::new(&self.facet_boxes)),
         }
         self.sync_obstacles(obstacles);
-        let tree = self.tree.as_ref().expect("built above");
+        let tree = self.tree.as_ref();
         let (surface, options, cache, facet_boxes) = (
             &self.surface,
             &self.options,
@@ -502,8 +514,10 @@ where
                     .collect();
                 let union = segs.iter().skip(1).fold(segs[0], |u, b| u.merged(b));
                 hits.clear();
-                tree.query(&union, &mut hits);
-                hits.sort_unstable();
+                if let Some(tree) = tree {
+                    tree.query(&union, &mut hits);
+                    hits.sort_unstable();
+                }
                 for (i, (&node, seg)) in group.iter().zip(&segs).enumerate() {
                     let body = surface.slave_body[start + g * GROUP + i];
                     for (k, o) in obstacles.iter().enumerate() {

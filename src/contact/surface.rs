@@ -92,6 +92,11 @@ where
         &self.facet_body
     }
 
+    /// Whether the surface's facets belong to more than one body.
+    pub fn has_several_bodies(&self) -> bool {
+        self.facet_body.windows(2).any(|w| w[0] != w[1])
+    }
+
     /// The slave nodes (global ids, sorted).
     pub fn slaves(&self) -> &[usize] {
         &self.slaves
