@@ -202,6 +202,9 @@ where
     system: Option<linear_solve::IterationSystem>,
     /// The factorisations named by [`ContactMemory::factors`], by id.
     contact_factors: Vec<linear_solve::ContactFactor>,
+    /// The symbolic analyses of the last contact patterns that were not the contact-free
+    /// one, unfactored, oldest first (see `Simulation::analysis_for`).
+    analyses: Vec<crate::solver::SparseCholesky>,
     /// Detection (its hierarchy and candidates; its memory is synchronised with the state).
     detector: Option<Detector<D>>,
     /// The polyline and trimesh obstacles' facets with their adjacency, and every body's
@@ -526,6 +529,7 @@ where
             caches: Caches {
                 system: None,
                 contact_factors: Vec::new(),
+                analyses: Vec::new(),
                 detector,
                 solids: Default::default(),
             },

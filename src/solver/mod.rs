@@ -219,6 +219,20 @@ impl SparseCholesky {
         }
     }
 
+    /// Whether this is the analysis `analyse_with(matrix, ordering, block)` would make: the
+    /// same pattern, ordering and block (the analysis is a function of these alone).
+    pub fn is_analysis_of(
+        &self,
+        matrix: &SparseColMat<usize, f64>,
+        ordering: FillOrdering,
+        block: usize,
+    ) -> bool {
+        self.ordering == ordering
+            && self.block == block
+            && self.pattern.0 == matrix.symbolic().col_ptr()
+            && self.pattern.1 == matrix.symbolic().row_idx()
+    }
+
     /// Takes over the value storage of `donor`, a factorisation no longer needed, where this
     /// one has no factor yet: the next numeric factorisation in the donor's precision writes
     /// over that storage instead of allocating a new one, zeroing it and faulting its pages in
