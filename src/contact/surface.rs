@@ -14,6 +14,8 @@ pub struct ContactSurface<const D: usize> {
     pub(super) facet_body: Vec<usize>,
     pub(super) slaves: Vec<usize>,
     pub(super) slave_body: Vec<usize>,
+    /// Whether the facets belong to more than one body.
+    several_bodies: bool,
     /// CSR: the facets around each global node.
     node_facet_offsets: Vec<usize>,
     node_facets: Vec<usize>,
@@ -73,6 +75,7 @@ where
             }
         }
         ContactSurface {
+            several_bodies: facet_body.windows(2).any(|w| w[0] != w[1]),
             facets,
             facet_body,
             slaves,
@@ -94,7 +97,7 @@ where
 
     /// Whether the surface's facets belong to more than one body.
     pub fn has_several_bodies(&self) -> bool {
-        self.facet_body.windows(2).any(|w| w[0] != w[1])
+        self.several_bodies
     }
 
     /// The slave nodes (global ids, sorted).

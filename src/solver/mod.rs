@@ -261,9 +261,7 @@ impl SparseCholesky {
 
     /// Re-analyses (same ordering) when `matrix` has another pattern than the analysed one.
     pub fn reanalyse_if_new_pattern(&mut self, matrix: &SparseColMat<usize, f64>) -> Result<()> {
-        let same = self.pattern.0 == matrix.symbolic().col_ptr()
-            && self.pattern.1 == matrix.symbolic().row_idx();
-        if !same {
+        if !self.is_analysis_of(matrix, self.ordering, self.block) {
             *self = SparseCholesky::analyse_with(matrix, self.ordering, self.block)?;
         }
         Ok(())
