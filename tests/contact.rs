@@ -488,6 +488,59 @@ where
     );
 }
 
+/// The end-of-step projection under implicit projection keeps the held points that do not
+/// penetrate on their masters while it moves the penetrating ones out (its rows are Newton's
+/// velocity constraints): the soft cube's block (E = 1e5 Pa, Tet4, 8 cells a side) landing at
+/// 1.4 m/s at a game's step, default settings, 2 s, ends every step with at most round-off
+/// inside the floor. Measured 2026-11-30: 0 m in 2D and 1.5e-9 m in 3D; with rows for the
+/// penetrating points only (before), 7.5e-7 m in 3D: the correction pressed held neighbours
+/// in, and they waited for the next step's Newton.
+fn a_soft_block_landing_under_implicit_projection_ends_every_step_outside<const D: usize>()
+where
+    Dim<D>: SpatialDim<D>,
+{
+    let mut g = [0.0; 3];
+    g[D - 1] = -9.81;
+    let mut down = [0.0; 3];
+    down[D - 1] = -1.4;
+    let mut point = [0.0; 3];
+    point[D - 1] = -1e-3;
+    let mut normal = [0.0; 3];
+    normal[D - 1] = 1.0;
+    let mut sim = Simulation::<D>::builder()
+        .time_step(1.0 / 60.0)
+        .gravity(vec_d(g))
+        .body(
+            Body::new(
+                "block",
+                block([0.2, 0.2, 0.2], [8, 8, 8], true),
+                Material::LinearElastic(LinearElastic::new(1e5, 0.3, 1000.0).unwrap()),
+            )
+            .with_velocity(vec_d(down)),
+        )
+        .obstacle(Obstacle::new(
+            "floor",
+            ObstacleShape::Halfspace {
+                point: vec_d(point),
+                normal: vec_d(normal),
+            },
+        ))
+        .build()
+        .unwrap();
+    assert_eq!(
+        sim.model().contact.method,
+        ContactMethod::ImplicitProjection
+    );
+    let (mut deepest, mut held_steps): (f64, usize) = (0.0, 0);
+    for _ in 0..120 {
+        let r = sim.step().unwrap();
+        deepest = deepest.max(r.max_penetration);
+        held_steps += usize::from(r.active_contacts > 0);
+    }
+    assert!(held_steps >= 40, "{D}D: {held_steps} steps in contact");
+    assert!(deepest < 1e-8, "{D}D: {deepest:.3e} m inside the floor");
+}
+
 both_dims!(
     bar_impact_soft_way,
     bar_impact_implicit_projection,
@@ -497,6 +550,7 @@ both_dims!(
     two_bars_soft_way,
     two_bars_implicit_projection,
     a_resting_block_keeps_its_held_set,
+    a_soft_block_landing_under_implicit_projection_ends_every_step_outside,
     a_bouncing_block_converges_in_one_iteration_per_steady_contact_step,
     coulomb_incline,
     tresca_incline,

@@ -507,7 +507,8 @@ where
                             &vars.active,
                         );
                     }
-                    let du = self.weighted_projection(&pairs, &facets, &x_end, h, step)?;
+                    let du =
+                        self.weighted_projection(&pairs, &vars.active, &facets, &x_end, h, step)?;
                     for (g, d) in gap_u1.iter_mut().zip(&du) {
                         *g += d;
                     }

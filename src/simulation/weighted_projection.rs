@@ -12,14 +12,23 @@
 //! (about 11 on the soft cube at h = 1/60 s). In the step's metric the stiff modes refuse the
 //! correction and the patch moves with its neighbours instead.
 //!
-//! The constraints are imposed by a penalty of [`PENALTY`] times the largest diagonal entry
-//! of the rows involved (the same entries implicit projection's Newton iterations carry, so
-//! the nearest contact factorisation preconditions the solve), which leaves `1/PENALTY` of
-//! each gap; one Uzawa correction takes that to its square.
+//! The held points that do not penetrate keep their place on the master (`G_c du = 0`): the
+//! correction of their neighbours would otherwise press them in or lift them off.
+//!
+//! The constraints are imposed by a penalty of [`VELOCITY_PENALTY`] times the slave's largest
+//! diagonal entry, which leaves `1/VELOCITY_PENALTY` of each gap; one Uzawa correction takes
+//! that to its square.
+//! These are the rows, and the penalty, of implicit projection's velocity constraint in
+//! Newton, so the step's last contact factorisation preconditions the solve almost exactly:
+//! with rows for the penetrating points only, its conjugate gradients took 4 to 7 iterations
+//! (the soft cube of 1331 nodes; the performance chapter), with the held rows one.
+
+use std::collections::BTreeSet;
 
 use nalgebra::{DMatrix, DVector, SVector};
 
 use super::Simulation;
+use crate::contact::methods::implicit_projection::VELOCITY_PENALTY;
 use crate::contact::methods::PairOutcome;
 use crate::contact::{ContactKey, ContactPair, Master, ProjectionMetric};
 use crate::dim::{Dim, SpatialDim};
@@ -32,7 +41,8 @@ type Constraint = (Vec<(usize, f64)>, f64, f64);
 /// step on the slave (N).
 pub(super) type StoppedPair<const D: usize> = (ContactKey, SVector<f64, D>, SVector<f64, D>);
 
-/// The penalty that imposes the projection, relative to the largest diagonal of its rows.
+/// The penalty that imposes the persistency stop, relative to the largest diagonal of its
+/// rows.
 const PENALTY: f64 = 1e4;
 
 /// Whether a rigid translation of each body comes first. Off: on the soft cube it took the
@@ -51,11 +61,12 @@ where
     Dim<D>: SpatialDim<D>,
 {
     /// The correction of the configuration that moves the penetrating points of `pairs`
-    /// (found at `positions`) onto their masters: rigid first, then in the step's metric
-    /// (zero where nothing penetrates).
+    /// (found at `positions`) onto their masters and keeps the other `active` ones there:
+    /// rigid first, then in the step's metric (zero where nothing penetrates).
     pub(super) fn weighted_projection(
         &mut self,
         pairs: &[ContactPair<D>],
+        active: &BTreeSet<ContactKey>,
         facets: &[[usize; D]],
         positions: &[SVector<f64, D>],
         h: f64,
@@ -76,10 +87,14 @@ where
                 Master::Facet(_) => None,
             })
             .collect();
+        // Whether a row holds a point that does not penetrate (gap 0).
+        let mut holds: Vec<bool> = Vec::new();
         for p in pairs {
             // Every penetrating point: an active one is held on its master, a free one is
             // leaving it (it penetrates while it separates) and is moved out with the rest.
-            if p.gap >= 0.0 {
+            // An active point that does not penetrate stays where it is along the normal.
+            let held = p.gap >= 0.0;
+            if held && !active.contains(&self.contact_key(p)) {
                 continue;
             }
             let mut g: Vec<(usize, f64)> = (0..D).map(|k| (p.slave * D + k, p.normal[k])).collect();
@@ -93,13 +108,18 @@ where
             if g.is_empty() {
                 continue;
             }
-            let rho = PENALTY * g.iter().map(|&(i, _)| diagonal[i]).fold(0.0, f64::max);
-            if matches!(p.master, Master::Obstacle(_)) {
+            // Newton's velocity constraint's penalty.
+            let rho = VELOCITY_PENALTY
+                * (0..D)
+                    .map(|k| diagonal[p.slave * D + k])
+                    .fold(0.0, f64::max);
+            if matches!(p.master, Master::Obstacle(_)) && !held {
                 obstacle_rows.push((p.slave, p.normal, p.gap));
             }
-            rows.push((g, p.gap, rho));
+            rows.push((g, p.gap.min(0.0), rho));
+            holds.push(held);
         }
-        if rows.is_empty() {
+        if holds.iter().all(|&h| h) {
             return Ok(vec![0.0; ndof]);
         }
         // The rigid part first: it strains nothing.
@@ -111,9 +131,14 @@ where
         for row in &mut rows {
             row.1 += row.0.iter().map(|&(i, a)| a * rigid[i]).sum::<f64>();
         }
-        rows.retain(|row| row.1 < 0.0);
         let mut du = rigid.clone();
-        if rows.is_empty() {
+        let rows: Vec<Constraint> = rows
+            .into_iter()
+            .zip(holds)
+            .filter(|(row, held)| *held || row.1 < 0.0)
+            .map(|(row, _)| row)
+            .collect();
+        if rows.iter().all(|row| row.1 >= 0.0) {
             return Ok(du);
         }
         let (elastic, _) = self.metric_projection(&rows, h, step)?;

@@ -24,8 +24,10 @@ use crate::contact::{ContactKey, ContactSettings};
 /// Implicit projection.
 pub(crate) struct ImplicitProjection;
 
-/// The velocity penalty that holds an active point, relative to its largest diagonal entry.
-const VELOCITY_PENALTY: f64 = 1e4;
+/// The velocity penalty that holds an active point, relative to its largest diagonal entry
+/// (the end-of-step projection's rows take the same, so that Newton's last factorisation
+/// preconditions them).
+pub(crate) const VELOCITY_PENALTY: f64 = 1e4;
 
 /// The return map's tangential stiffness times the step, relative to the slave's diagonal.
 /// At 100 (until 2026-11-29) the 3D stack of blocks with Coulomb 0.5 stopped at step 191:
