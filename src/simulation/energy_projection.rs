@@ -26,7 +26,9 @@ where
     /// their deformation velocity in `v1`, each body in proportion to what it was given.
     /// `allowance` is what the run has dissipated so far: the correction may give back what
     /// the contact's inelastic stops took (the bar impact's stop and correction together are
-    /// what its analytic contact force needs), not more.
+    /// what its analytic contact force needs), not more. Returns Q at `(u_before, v1)` and at
+    /// `(u1, v1)` as they leave, where it measured both (one body, `v1` left as it was), for
+    /// the correction's booking.
     #[allow(clippy::too_many_arguments)]
     pub(super) fn remove_projection_energy(
         &self,
@@ -37,8 +39,11 @@ where
         h: f64,
         history: &[f64],
         allowance: f64,
-    ) {
+    ) -> Option<(f64, f64)> {
         let dofs_of = |b: usize| self.nodes_of(b).start * D..self.nodes_of(b).end * D;
+        let q_before = self.scheme_energy_at(u_before, v1, h, history);
+        // Q at (u1, v1) where one body holds every unknown (then `u_mixed` is `u1`).
+        let mut q_after = (self.model.bodies.len() == 1).then_some(q_before);
         let created: Vec<f64> = (0..self.model.bodies.len())
             .map(|b| {
                 let dofs = dofs_of(b);
@@ -49,16 +54,17 @@ where
                 let mut u_mixed = u_before.to_vec();
                 u_mixed[dofs.clone()].copy_from_slice(&u1[dofs.clone()]);
                 let work: f64 = dofs.map(|i| f_ext[i] * (u1[i] - u_before[i])).sum();
-                (self.scheme_energy_at(&u_mixed, v1, h, history)
-                    - self.scheme_energy_at(u_before, v1, h, history)
-                    - work)
-                    .max(0.0)
+                let q_mixed = self.scheme_energy_at(&u_mixed, v1, h, history);
+                if let Some(q) = q_after.as_mut() {
+                    *q = q_mixed;
+                }
+                (q_mixed - q_before - work).max(0.0)
             })
             .collect();
         let total: f64 = created.iter().sum();
         let excess = total - allowance.max(0.0);
         if !(excess > 0.0) {
-            return;
+            return q_after.map(|q| (q_before, q));
         }
         for (b, &given) in created.iter().enumerate() {
             let remove = given * excess / total;
@@ -92,6 +98,7 @@ where
             let v = with_scale(s.clamp(0.0, 1.0));
             v1[dofs.clone()].copy_from_slice(&v[dofs]);
         }
+        None
     }
 
     /// The rigid velocity field that best fits body `b`'s velocities `v` at displacements `u`

@@ -300,15 +300,14 @@ where
     pub(super) fn scheme_energy_at(&self, u: &[f64], v: &[f64], h: f64, history: &[f64]) -> f64 {
         let SpaceTimeScheme { alpha, beta } = self.model.settings.scheme;
         let (wu, wv) = self.stiffness_fields(u, v);
-        let k = &self.matrices.stiffness;
+        // K wv once for both of its terms: this runs several times a contact step.
+        let mut k_wv = vec![0.0; wv.len()];
+        assembly::symmetric_mul_add(&self.matrices.stiffness, &wv, 1.0, &mut k_wv);
+        let dot = |a: &[f64]| a.iter().zip(&k_wv).map(|(a, b)| a * b).sum::<f64>();
         0.5 * assembly::symmetric_dot(&self.matrices.mass, v, v)
             + self.internal_energy(u, history)
-            + 0.5 * h * (alpha - beta) * assembly::symmetric_dot(k, &wu, &wv)
-            + 0.25
-                * (alpha * alpha - 2.0 * alpha * beta)
-                * h
-                * h
-                * assembly::symmetric_dot(k, &wv, &wv)
+            + 0.5 * h * (alpha - beta) * dot(&wu)
+            + 0.25 * (alpha * alpha - 2.0 * alpha * beta) * h * h * dot(&wv)
     }
 
     /// The energy the end-of-step projection took out of the system (negative: put in),
@@ -320,6 +319,8 @@ where
     /// which the next steps' swing of E gives back unbooked: on the ring drop that booked
     /// -130,900 J over a landing after which E - E(0) - W was +38 J. Booked as dissipation,
     /// it closes the scheme's account exactly, whatever its sign.
+    /// `known` holds Q before and after where the caller has them already.
+    #[allow(clippy::too_many_arguments)]
     fn projection_dissipation(
         &self,
         before: [&[f64]; 2],
@@ -328,10 +329,16 @@ where
         impulses: &[Vec<f64>],
         h: f64,
         history: &[f64],
+        known: Option<(f64, f64)>,
     ) -> f64 {
         let SpaceTimeScheme { alpha, beta } = self.model.settings.scheme;
-        let change = self.scheme_energy_at(after[0], after[1], h, history)
-            - self.scheme_energy_at(before[0], before[1], h, history);
+        let (q_before, q_after) = known.unwrap_or_else(|| {
+            (
+                self.scheme_energy_at(before[0], before[1], h, history),
+                self.scheme_energy_at(after[0], after[1], h, history),
+            )
+        });
+        let change = q_after - q_before;
         // The external forces' work in Q's terms: f.du + h/2 (alpha - beta) f.dv. Prescribed
         // components do not move: their reactions do no work here.
         let mut work: f64 = (0..f_ext.len())
@@ -541,11 +548,13 @@ where
             for i in 0..ndof {
                 u1[i] += gap_u1[i] - gap_before[i];
             }
+            // Q before and after the correction, where the bound has measured them.
+            let mut known = None;
             if self.model.contact.projection_energy == ProjectionEnergy::Bounded
                 && rule == EndProjection::Active
                 && self.model.contact.projection == ProjectionMetric::Step
             {
-                self.remove_projection_energy(
+                known = self.remove_projection_energy(
                     &u_before,
                     &u1,
                     &mut v1,
@@ -562,6 +571,7 @@ where
                 &impulses,
                 h,
                 material_history,
+                known,
             );
             if self.obstacles_turn() {
                 // Turning obstacles' impulses also work through their turning.
@@ -598,6 +608,7 @@ where
                 &impulses,
                 h,
                 material_history,
+                None,
             );
             if self.obstacles_turn() {
                 projection_dissipation += self.spin_work(
