@@ -488,6 +488,42 @@ where
     );
 }
 
+/// A soft block (E = 1e5 Pa, nu = 0.3, 1000 kg/m^3) moving down at `speed` onto a floor
+/// `floor_below` under its bottom face at y (2D) or z (3D) = 0, under gravity.
+fn block_onto_floor<const D: usize>(
+    mesh: Mesh<D>,
+    speed: f64,
+    floor_below: f64,
+    time_step: f64,
+) -> SimulationBuilder<D>
+where
+    Dim<D>: SpatialDim<D>,
+{
+    let axis = |x: f64| {
+        let mut v = [0.0; 3];
+        v[D - 1] = x;
+        vec_d(v)
+    };
+    Simulation::<D>::builder()
+        .time_step(time_step)
+        .gravity(axis(-9.81))
+        .body(
+            Body::new(
+                "block",
+                mesh,
+                Material::LinearElastic(LinearElastic::new(1e5, 0.3, 1000.0).unwrap()),
+            )
+            .with_velocity(axis(-speed)),
+        )
+        .obstacle(Obstacle::new(
+            "floor",
+            ObstacleShape::Halfspace {
+                point: axis(-floor_below),
+                normal: axis(1.0),
+            },
+        ))
+}
+
 /// The end-of-step projection under implicit projection keeps the held points that do not
 /// penetrate on their masters while it moves the penetrating ones out (its rows are Newton's
 /// velocity constraints): the soft cube's block (E = 1e5 Pa, Tet4, 8 cells a side) landing at
@@ -499,34 +535,14 @@ fn a_soft_block_landing_under_implicit_projection_ends_every_step_outside<const 
 where
     Dim<D>: SpatialDim<D>,
 {
-    let mut g = [0.0; 3];
-    g[D - 1] = -9.81;
-    let mut down = [0.0; 3];
-    down[D - 1] = -1.4;
-    let mut point = [0.0; 3];
-    point[D - 1] = -1e-3;
-    let mut normal = [0.0; 3];
-    normal[D - 1] = 1.0;
-    let mut sim = Simulation::<D>::builder()
-        .time_step(1.0 / 60.0)
-        .gravity(vec_d(g))
-        .body(
-            Body::new(
-                "block",
-                block([0.2, 0.2, 0.2], [8, 8, 8], true),
-                Material::LinearElastic(LinearElastic::new(1e5, 0.3, 1000.0).unwrap()),
-            )
-            .with_velocity(vec_d(down)),
-        )
-        .obstacle(Obstacle::new(
-            "floor",
-            ObstacleShape::Halfspace {
-                point: vec_d(point),
-                normal: vec_d(normal),
-            },
-        ))
-        .build()
-        .unwrap();
+    let mut sim = block_onto_floor::<D>(
+        block([0.2, 0.2, 0.2], [8, 8, 8], true),
+        1.4,
+        1e-3,
+        1.0 / 60.0,
+    )
+    .build()
+    .unwrap();
     assert_eq!(
         sim.model().contact.method,
         ContactMethod::ImplicitProjection
@@ -820,32 +836,7 @@ fn a_bouncing_block_converges_in_one_iteration_per_steady_contact_step<const D: 
 where
     Dim<D>: SpatialDim<D>,
 {
-    let mut g = [0.0; 3];
-    g[D - 1] = -9.81;
-    let mut down = [0.0; 3];
-    down[D - 1] = -1.0;
-    let mut point = [0.0; 3];
-    point[D - 1] = -2e-3;
-    let mut normal = [0.0; 3];
-    normal[D - 1] = 1.0;
-    let mut sim = Simulation::<D>::builder()
-        .time_step(1e-3)
-        .gravity(vec_d(g))
-        .body(
-            Body::new(
-                "block",
-                block([0.2, 0.1, 0.2], [4, 2, 4], false),
-                Material::LinearElastic(LinearElastic::new(1e5, 0.3, 1000.0).unwrap()),
-            )
-            .with_velocity(vec_d(down)),
-        )
-        .obstacle(Obstacle::new(
-            "floor",
-            ObstacleShape::Halfspace {
-                point: vec_d(point),
-                normal: vec_d(normal),
-            },
-        ))
+    let mut sim = block_onto_floor::<D>(block([0.2, 0.1, 0.2], [4, 2, 4], false), 1.0, 2e-3, 1e-3)
         .contact(ContactSettings {
             method: ContactMethod::SoftWay,
             penalty: 1e8,
