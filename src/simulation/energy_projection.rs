@@ -41,15 +41,23 @@ where
         allowance: f64,
     ) -> Option<(f64, f64)> {
         let dofs_of = |b: usize| self.nodes_of(b).start * D..self.nodes_of(b).end * D;
+        let one_body = self.model.bodies.len() == 1;
+        let moved: Vec<bool> = (0..self.model.bodies.len())
+            .map(|b| dofs_of(b).any(|i| u1[i] != u_before[i]))
+            .collect();
+        if !one_body && !moved.contains(&true) {
+            // Nothing to bound, and no value the booking could reuse.
+            return None;
+        }
         let q_before = self.scheme_energy_at(u_before, v1, h, history);
         // Q at (u1, v1) where one body holds every unknown (then `u_mixed` is `u1`).
-        let mut q_after = (self.model.bodies.len() == 1).then_some(q_before);
+        let mut q_after = one_body.then_some(q_before);
         let created: Vec<f64> = (0..self.model.bodies.len())
             .map(|b| {
-                let dofs = dofs_of(b);
-                if dofs.clone().all(|i| u1[i] == u_before[i]) {
+                if !moved[b] {
                     return 0.0;
                 }
+                let dofs = dofs_of(b);
                 // Q is a sum over bodies: body b's part of the change, the others unmoved.
                 let mut u_mixed = u_before.to_vec();
                 u_mixed[dofs.clone()].copy_from_slice(&u1[dofs.clone()]);
