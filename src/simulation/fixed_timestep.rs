@@ -3,7 +3,7 @@
 //! steps of the simulation's step size as that time covers, carries the remainder to the
 //! next frame, and says how far the simulation lags behind the host's clock.
 
-use super::{Simulation, StepReport};
+use super::{ContactEvent, Simulation, StepReport};
 use crate::dim::{Dim, SpatialDim};
 use crate::error::Result;
 
@@ -30,6 +30,10 @@ pub struct FrameReport {
     pub blend: f64,
     /// Whether the frame hit `max_steps_per_frame` with a whole step or more left.
     pub behind: bool,
+    /// The contact events of every step run in this frame, in order
+    /// ([`Simulation::contact_events`] holds the last step's only: a landing in an earlier
+    /// step of the frame is there and nowhere else).
+    pub events: Vec<ContactEvent>,
 }
 
 impl Default for FixedTimestep {
@@ -93,11 +97,13 @@ impl FixedTimestep {
         self.accumulated += frame_time;
         let mut steps = 0;
         let mut last = None;
+        let mut events = Vec::new();
         // A whole step is due when the accumulated time reaches it up to round-off (60 frames
         // of 1/60 s make 60 steps of 1/60 s).
         let due = |acc: f64| acc >= h * (1.0 - 1e-9);
         while due(self.accumulated) && steps < self.max_steps_per_frame {
             last = Some(sim.step_with(recorder)?);
+            events.extend_from_slice(sim.contact_events());
             self.accumulated = (self.accumulated - h).max(0.0);
             steps += 1;
         }
@@ -107,6 +113,7 @@ impl FixedTimestep {
             lag: self.accumulated,
             blend: (self.accumulated / h).min(1.0),
             behind: due(self.accumulated),
+            events,
         })
     }
 }
