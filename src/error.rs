@@ -285,6 +285,29 @@ pub enum Error {
         /// when Newton's iterate found it (not for a fold by the end-of-step correction).
         place: Option<(String, Vec<f64>)>,
     },
+    /// A cell of a body ended a step turned inside out (see
+    /// [`Simulation::inverted_cell`](crate::simulation::Simulation::inverted_cell)): its
+    /// nodes passed through one another.
+    #[error(
+        "a cell turned inside out at step {step} (t = {time:.6e} s): cell {cell} of body \
+         `{body}` near ({}) m has a negative Jacobian at the end of the step, its nodes passed \
+         through one another; strains of that order are beyond a small-strain law, which does \
+         not resist them, and contact holds only boundary nodes: use a smaller time_step, a \
+         slower impact or load, or a finer mesh where the body deforms most",
+        centre.iter().map(|c| format!("{c:.4e}")).collect::<Vec<_>>().join(", ")
+    )]
+    TurnedInsideOut {
+        /// Step number (1-based).
+        step: usize,
+        /// Time at the end of the step (s).
+        time: f64,
+        /// The body.
+        body: String,
+        /// The cell's index in the body's mesh.
+        cell: usize,
+        /// The cell's centre at the end of the step (m).
+        centre: Vec<f64>,
+    },
     /// The sparse factorisation failed (matrix not positive definite).
     #[error("factorisation failed at step {step}: {message}")]
     Factorization {

@@ -143,11 +143,6 @@ where
             )
             .with_motion(vec![piece::<D>(0.1, down)]),
         )
-        .contact(ContactSettings {
-            method: ContactMethod::SoftWay,
-            penalty: 1e10,
-            ..Default::default()
-        })
         .build()
         .unwrap();
     let mut last = None;
@@ -158,20 +153,30 @@ where
     assert!(
         (sim.obstacle_translation(sim.obstacle_ids()[1]).unwrap()[D - 1] + 0.002).abs() < 1e-12
     );
-    // The block is squeezed between floor and plate by about 1 mm of 0.1 m: forces along the
-    // axis of about E A (1 mm / 0.1 m) (plane strain stiffens it by 1/(1 - nu^2); within a
-    // factor 2 of E A strain).
+    // The block is squeezed between floor and plate by 1 mm of 0.1 m, frictionless: forces
+    // along the axis of E A (1 mm / 0.1 m), plane strain stiffening it by 1/(1 - nu^2). The
+    // plate's stop leaves the block ringing, a strain of about v/c = 0.02 / 31.6 = 6e-4 on
+    // the 1e-2: within 10 %. (Default contact settings: implicit projection, no penetration
+    // taken off the squeeze. Measured 2026-11-30: the plate's force 1.5 % (2D) and 0.8 % (3D)
+    // above it, the floor's 2.0 % and 0.4 % below.)
     let (floor, plate) = (
         report.contact_forces[0][D - 1],
         report.contact_forces[1][D - 1],
     );
+    eprintln!("D = {D}: floor {floor} N, plate {plate} N");
     assert!(floor > 0.0 && plate < 0.0, "{floor} {plate}");
-    let area = if D == 2 { 0.1 } else { 0.01 };
-    let expected = 1e6 * area * 0.01;
-    assert!(
-        plate.abs() > 0.5 * expected && plate.abs() < 2.0 * expected,
-        "plate force {plate} against E A strain {expected}"
-    );
+    let (area, stiffening) = if D == 2 {
+        (0.1, 1.0 / (1.0 - 0.3 * 0.3))
+    } else {
+        (0.01, 1.0)
+    };
+    let expected = 1e6 * stiffening * area * 0.01;
+    for force in [floor, -plate] {
+        assert!(
+            (force / expected - 1.0).abs() < 0.1,
+            "force {force} N against E A strain {expected} N"
+        );
+    }
 }
 
 both_dims!(

@@ -602,6 +602,7 @@ where
                 | Error::FellThrough { .. }
                 | Error::Tunnelled { .. }
                 | Error::InvertedCell { .. }
+                | Error::TurnedInsideOut { .. }
                 | Error::Factorization { .. }
                 | Error::Output { .. } => FAILED,
                 _ => {

@@ -197,6 +197,57 @@ where
         j
     }
 
+    /// The first cell that is turned inside out when the nodes are at `positions` (the
+    /// mesh's nodes moved, in its order): a Jacobian below `-1e-12 size^D` at a quadrature
+    /// point (one point for the linear simplices, whose Jacobian is constant), `size` the
+    /// cell's diagonal. Its index and centre (m). Not at the corners: a quadrilateral with
+    /// one reflex corner is distorted, not folded, and its quadrature points still integrate
+    /// it (the bundled tube crush's fold has such cells on the floor; Newton's test of
+    /// updated-Lagrangian cells reads the quadrature points too).
+    pub(crate) fn inverted_cell(
+        &self,
+        positions: &[SVector<f64, D>],
+    ) -> Option<(usize, SVector<f64, D>)> {
+        let mut offset = 0;
+        for block in &self.blocks {
+            let points: Vec<[f64; 3]> = match block.kind {
+                ElementKind::Tri3 | ElementKind::Tet4 => vec![block.kind.node_coordinates()[0]],
+                _ => block.kind.quadrature().iter().map(|q| q.xi).collect(),
+            };
+            // The shape functions' derivatives at those points, the same for every cell.
+            let shapes: Vec<_> = points.iter().map(|&xi| block.kind.shape(xi)).collect();
+            for (c, cell) in block.cells().enumerate() {
+                let least = shapes
+                    .iter()
+                    .map(|s| {
+                        let mut j = SMatrix::<f64, D, D>::zeros();
+                        for (a, &n) in cell.iter().enumerate() {
+                            for k in 0..D {
+                                j.column_mut(k).axpy(s.dn[a][k], &positions[n], 1.0);
+                            }
+                        }
+                        <Dim<D>>::det(&j)
+                    })
+                    .fold(f64::INFINITY, f64::min);
+                if least >= 0.0 {
+                    continue;
+                }
+                let (mut lo, mut hi) = (positions[cell[0]], positions[cell[0]]);
+                for &n in cell {
+                    lo = lo.inf(&positions[n]);
+                    hi = hi.sup(&positions[n]);
+                }
+                if least < -1e-12 * (hi - lo).norm().powi(D as i32) {
+                    let centre = cell.iter().map(|&n| positions[n]).sum::<SVector<f64, D>>()
+                        / cell.len() as f64;
+                    return Some((offset + c, centre));
+                }
+            }
+            offset += block.len();
+        }
+        None
+    }
+
     /// The diagonal of the bounding box (m).
     pub fn characteristic_length(&self) -> f64 {
         let (lo, hi) = self.bounding_box();

@@ -115,6 +115,23 @@ where
     }
 }
 
+/// A cell of any body turned inside out at the end of the step: [`Error::TurnedInsideOut`].
+fn inverted_cell_check<const D: usize>(sim: &Simulation<D>, report: &StepReport) -> Result<()>
+where
+    Dim<D>: SpatialDim<D>,
+{
+    match sim.inverted_cell() {
+        Some((body, cell, centre)) => Err(Error::TurnedInsideOut {
+            step: report.step,
+            time: report.time,
+            body,
+            cell,
+            centre: centre.as_slice().to_vec(),
+        }),
+        None => Ok(()),
+    }
+}
+
 /// An [`Error::ContactCycling`] when the points held closed through a contact-set cycle pull
 /// with more than [`HELD_TENSION_FAILURE`] of the compression of the step's other points, or
 /// of `run_compression` (N), the most the run's contact points pressed with in one step, if
@@ -312,6 +329,7 @@ impl RunMonitor {
         // state off that orbit, which says nothing about energy created.
         let h = sim.model.settings.time_step;
         if (report.time_step - h).abs() > 1e-9 * h {
+            inverted_cell_check(sim, report)?;
             self.note_contacts(report, &mut news);
             return Ok((!news.is_empty()).then(|| news.join("; ")));
         }
@@ -351,6 +369,8 @@ impl RunMonitor {
                 advice: self.advice(),
             });
         }
+        // After the gross energy check: a run that created that much names its cause there.
+        inverted_cell_check(sim, report)?;
         if created > ENERGY_WARNING && self.created.is_none() {
             self.created = Some((report.step, report.time, created));
             self.created_mechanical = mechanical;

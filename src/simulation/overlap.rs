@@ -3,7 +3,8 @@
 //! [`Simulation::check_overlaps`]) and the fall-through monitor ([`Simulation::fell_through`]),
 //! which contact detection alone cannot see beyond its margin; and the tunnelling watch
 //! ([`Simulation::tunnelled`]): nodes that passed through an obstacle within a step and ended
-//! outside it, where no test of the end of the step can see them.
+//! outside it, where no test of the end of the step can see them; and a body's own cells
+//! turned inside out ([`Simulation::inverted_cell`]).
 
 use std::collections::BTreeMap;
 
@@ -405,6 +406,25 @@ impl<const D: usize> Simulation<D>
 where
     Dim<D>: SpatialDim<D>,
 {
+    /// The first cell of any body turned inside out in the current configuration (a
+    /// negative Jacobian at a quadrature point): its body's name, its index in that
+    /// body's mesh and its centre (m). A small-strain law does not resist such a fold: the
+    /// nodes pass through one another with finite stresses, and contact, which holds only
+    /// boundary nodes, does not see interior nodes leaving through the boundary (a block
+    /// thrown hard at a floor under implicit projection: its boundary held on the floor, its
+    /// interior going on below it).
+    pub fn inverted_cell(&self) -> Option<(String, usize, SVector<f64, D>)> {
+        self.model.bodies.iter().enumerate().find_map(|(b, body)| {
+            let start = self.node_offsets[b];
+            let positions: Vec<SVector<f64, D>> = (start..start + body.mesh.nodes.len())
+                .map(|g| self.reference[g] + Self::node_vector(&self.state.displacement, g))
+                .collect();
+            body.mesh
+                .inverted_cell(&positions)
+                .map(|(cell, centre)| (body.name.clone(), cell, centre))
+        })
+    }
+
     /// The tunnelling watch: boundary nodes whose straight path over the last step (each piece
     /// of a cut step), relative to an obstacle, passed through it and ended outside on its far
     /// side (see `contact::inside::passes_through`): a fast body that crossed a thin box, a
