@@ -373,24 +373,27 @@ fn trimesh_drawn_the_wrong_way_is_refused() {
     assert!(!stdout(&o).contains("warning"), "{}", stdout(&o));
 }
 
+/// `BLOCK` 1 cm above its floor, thrown down at 300 m/s, without gravity.
+fn thrown_block() -> String {
+    BLOCK
+        .replace(
+            "min = [0.0, 0.1], max = [1.0, 0.6]",
+            "min = [0.0, 0.01], max = [1.0, 0.51]",
+        )
+        .replace("gravity = [0.0, -9.81]", "")
+        .replace(
+            "density = 1000.0 }",
+            "density = 1000.0 }\ninitial_velocity = [0.0, -300.0]",
+        )
+}
+
 /// A block thrown at 300 m/s onto a polyline floor (drawn the right way) crosses it within a
 /// step: the run stops (exit 3) at the step its nodes are found under the floor beyond the
 /// reach of contact detection, and says why; it ran on to the end before.
 #[test]
 fn a_block_through_the_floor_stops_the_run() {
     let dir = tempdir();
-    let (_scenes, file) = scene(
-        &BLOCK
-            .replace(
-                "min = [0.0, 0.1], max = [1.0, 0.6]",
-                "min = [0.0, 0.01], max = [1.0, 0.51]",
-            )
-            .replace("gravity = [0.0, -9.81]", "")
-            .replace(
-                "density = 1000.0 }",
-                "density = 1000.0 }\ninitial_velocity = [0.0, -300.0]",
-            ),
-    );
+    let (_scenes, file) = scene(&thrown_block());
     let out = dir.path().join("out");
     let o = run_scene(dir.path(), &file, &out, &[]);
     let err = stderr(&o);
@@ -419,19 +422,8 @@ fn a_block_through_the_floor_stops_the_run() {
 #[test]
 fn a_block_folded_through_its_own_boundary_stops_the_run() {
     let dir = tempdir();
-    let (_scenes, file) = scene(
-        &BLOCK
-            .replace(
-                "min = [0.0, 0.1], max = [1.0, 0.6]",
-                "min = [0.0, 0.01], max = [1.0, 0.51]",
-            )
-            .replace("gravity = [0.0, -9.81]", "")
-            .replace(
-                "density = 1000.0 }",
-                "density = 1000.0 }\ninitial_velocity = [0.0, -300.0]",
-            )
-            .replace("method = \"soft_way\"\npenalty = 1.0e10\n", ""),
-    );
+    let (_scenes, file) =
+        scene(&thrown_block().replace("method = \"soft_way\"\npenalty = 1.0e10\n", ""));
     let out = dir.path().join("out");
     let o = run_scene(dir.path(), &file, &out, &[]);
     let err = stderr(&o);
