@@ -671,7 +671,64 @@ mod d3 {
 
 mod open {
     use super::Stack;
-    use softway::contact::{ContactMethod, GapDisplacement};
+    use crate::common::{self, block, energy_error, vec_d};
+    use softway::contact::{ContactMethod, ContactSettings, FrictionLaw, GapDisplacement};
+    use softway::prelude::*;
+
+    /// Two rubber blocks (0.1 m, E = 1 MPa, 4^3 cubes of six Tet4, 5 % stiffness damping), the
+    /// upper 1 cm to the side, dropped 2 mm on a floor with Coulomb 0.5 everywhere, the
+    /// default method, a game's step: they come to rest with the account within 2 %.
+    fn rubber_stack_at(time_step: f64) {
+        let mut builder = Simulation::<3>::builder()
+            .time_step(time_step)
+            .gravity(vec_d([0.0, 0.0, -9.81]));
+        for k in 0..2 {
+            let mut mesh: Mesh<3> = block([0.1, 0.1, 0.1], [4, 4, 4], true);
+            let shift = vec_d::<3>([0.01 * k as f64, 0.0, 0.002 + 0.103 * k as f64]);
+            for x in &mut mesh.nodes {
+                *x += shift;
+            }
+            let rubber = Material::LinearElastic(LinearElastic::new(1e6, 0.3, 1000.0).unwrap());
+            builder =
+                builder.body(Body::new(format!("block{k}"), mesh, rubber).with_damping(0.0, 1e-3));
+        }
+        let mut sim = builder
+            .obstacle(common::floor::<3>())
+            .contact(ContactSettings {
+                friction: FrictionLaw::Coulomb {
+                    coefficient: 0.5,
+                    regularization: 1e-6,
+                },
+                ..ContactSettings::default()
+            })
+            .build()
+            .unwrap();
+        while sim.state().time < 1.0 - 1e-9 {
+            sim.step()
+                .unwrap_or_else(|e| panic!("h = {time_step}, t = {}: {e}", sim.state().time));
+        }
+        let error = energy_error(&sim);
+        let kinetic = sim.energies().kinetic;
+        eprintln!("h = {time_step}: energy error {error:.2e}, kinetic {kinetic:.2e} J");
+        assert!(error < 2e-2, "energy error {error}");
+    }
+
+    #[test]
+    #[ignore = "issue 10 (found 2026-11-30): stops at step 47 (t = 0.19 s) with no convergence \
+                at a relative residual of 2e-5, the largest at a top node of the lower block \
+                held on the upper one (one pass)"]
+    fn a_rubber_stack_with_friction_at_240_hz() {
+        rubber_stack_at(1.0 / 240.0);
+    }
+
+    #[test]
+    #[ignore = "issue 10 (found 2026-11-30): runs and comes to rest, but the account is off by \
+                3.2e-2 (`energy_error`; `softway run`'s energy_drift reads 6 %): energy lost, \
+                not booked, in the landing's steps; aligned (no offset), `softway run`'s drift \
+                reads 8e-6"]
+    fn a_rubber_stack_with_friction_at_60_hz() {
+        rubber_stack_at(1.0 / 60.0);
+    }
 
     #[test]
     #[ignore = "penetration: 6.9e-4 m at worst, 1.8e-4 m in the last 50 ms (2026-11-30), a \
