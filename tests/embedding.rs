@@ -51,6 +51,18 @@ where
         .unwrap()
 }
 
+/// The height of a body's lowest node above the floor (m).
+fn lowest_point<const D: usize>(sim: &Simulation<D>, body: BodyId) -> f64
+where
+    Dim<D>: SpatialDim<D>,
+{
+    sim.body_positions(body)
+        .unwrap()
+        .iter()
+        .map(|x| x[D - 1])
+        .fold(f64::INFINITY, f64::min)
+}
+
 /// The total momentum of a body (kg m/s): `M v` summed over its nodes.
 fn momentum<const D: usize>(sim: &Simulation<D>, body: BodyId) -> SVector<f64, D>
 where
@@ -215,12 +227,7 @@ where
     for _ in 0..240 {
         sim.step().unwrap();
     }
-    let lowest = sim
-        .body_positions(b)
-        .unwrap()
-        .iter()
-        .map(|x| x[D - 1])
-        .fold(f64::INFINITY, f64::min);
+    let lowest = lowest_point(&sim, b);
     assert!(
         lowest.abs() < 2e-3,
         "b lies on the floor: lowest point {lowest} m"
@@ -364,12 +371,7 @@ where
             .count();
         let e = sim.energies();
         let created = e.total() + e.dissipated - sim.initial_energy() - e.external_work;
-        let lowest = sim
-            .body_positions(a)
-            .unwrap()
-            .iter()
-            .map(|x| x[D - 1])
-            .fold(f64::INFINITY, f64::min);
+        let lowest = lowest_point(&sim, a);
         eprintln!(
             "D = {D}, stacked {stacked}: {landings} landings, the last event in frame \
              {last_event_frame}, {created:.1e} J created, kinetic {:.1e} J, lowest {lowest:.1e} m",

@@ -8,7 +8,7 @@ use nalgebra::{SMatrix, SVector};
 use serde::{Deserialize, Serialize};
 
 use crate::dim::{Dim, SpatialDim};
-use crate::element::ElementKind;
+use crate::element::{ElementKind, ShapeValues};
 use crate::error::{Error, Result};
 
 /// A block of cells of one element type; connectivity is flat, `kind.nodes()` per cell.
@@ -149,12 +149,7 @@ where
             for (c, cell) in block.cells().enumerate() {
                 // Degenerate: a determinant below 1e-12 of the cell's own size^D (the whole
                 // mesh's size refused the small cells of a long mesh: a 1 km bar of 1 cm cubes).
-                let (mut lo, mut hi) = (self.nodes[cell[0]], self.nodes[cell[0]]);
-                for &n in cell {
-                    lo = lo.inf(&self.nodes[n]);
-                    hi = hi.sup(&self.nodes[n]);
-                }
-                let size = (hi - lo).norm().max(f64::MIN_POSITIVE);
+                let size = cell_diagonal(&self.nodes, cell).max(f64::MIN_POSITIVE);
                 let floor = 1e-12 * size.powi(D as i32);
                 let mut min_det = f64::INFINITY;
                 let points = block
@@ -187,14 +182,7 @@ where
 
     /// dx/dxi of one cell at reference point `xi` (column k = d x / d xi_k).
     pub fn jacobian(&self, kind: ElementKind, cell: &[usize], xi: [f64; 3]) -> SMatrix<f64, D, D> {
-        let s = kind.shape(xi);
-        let mut j = SMatrix::<f64, D, D>::zeros();
-        for (a, &n) in cell.iter().enumerate() {
-            for k in 0..D {
-                j.column_mut(k).axpy(s.dn[a][k], &self.nodes[n], 1.0);
-            }
-        }
-        j
+        jacobian_with(&kind.shape(xi), cell, &self.nodes)
     }
 
     /// The first cell that is turned inside out when the nodes are at `positions` (the
@@ -219,25 +207,12 @@ where
             for (c, cell) in block.cells().enumerate() {
                 let least = shapes
                     .iter()
-                    .map(|s| {
-                        let mut j = SMatrix::<f64, D, D>::zeros();
-                        for (a, &n) in cell.iter().enumerate() {
-                            for k in 0..D {
-                                j.column_mut(k).axpy(s.dn[a][k], &positions[n], 1.0);
-                            }
-                        }
-                        <Dim<D>>::det(&j)
-                    })
+                    .map(|s| <Dim<D>>::det(&jacobian_with(s, cell, positions)))
                     .fold(f64::INFINITY, f64::min);
                 if least >= 0.0 {
                     continue;
                 }
-                let (mut lo, mut hi) = (positions[cell[0]], positions[cell[0]]);
-                for &n in cell {
-                    lo = lo.inf(&positions[n]);
-                    hi = hi.sup(&positions[n]);
-                }
-                if least < -1e-12 * (hi - lo).norm().powi(D as i32) {
+                if least < -1e-12 * cell_diagonal(positions, cell).powi(D as i32) {
                     let centre = cell.iter().map(|&n| positions[n]).sum::<SVector<f64, D>>()
                         / cell.len() as f64;
                     return Some((offset + c, centre));
@@ -358,6 +333,32 @@ where
             *x += offset;
         }
     }
+}
+
+/// dx/dxi of one cell with its nodes at `nodes`, from its shape functions' derivatives `s` at
+/// a reference point (column k = d x / d xi_k).
+fn jacobian_with<const D: usize>(
+    s: &ShapeValues,
+    cell: &[usize],
+    nodes: &[SVector<f64, D>],
+) -> SMatrix<f64, D, D> {
+    let mut j = SMatrix::<f64, D, D>::zeros();
+    for (a, &n) in cell.iter().enumerate() {
+        for k in 0..D {
+            j.column_mut(k).axpy(s.dn[a][k], &nodes[n], 1.0);
+        }
+    }
+    j
+}
+
+/// The diagonal of a cell's bounding box with its nodes at `nodes` (m).
+fn cell_diagonal<const D: usize>(nodes: &[SVector<f64, D>], cell: &[usize]) -> f64 {
+    let (mut lo, mut hi) = (nodes[cell[0]], nodes[cell[0]]);
+    for &n in cell {
+        lo = lo.inf(&nodes[n]);
+        hi = hi.sup(&nodes[n]);
+    }
+    (hi - lo).norm()
 }
 
 #[cfg(test)]
