@@ -301,7 +301,7 @@ where
         }
         // Under implicit projection a point is held while it is active (see `closed` below).
         let loaded = |p: &PairNormal<D>| {
-            if input.method.lagged_friction_threshold() {
+            if input.method.closed_by_active_set() {
                 p.law.stiffness > 0.0
             } else {
                 p.law.force > 0.0
@@ -393,7 +393,8 @@ where
             // viscoplastic) switched on by its sign turns its whole friction on and off with
             // the noise of a force near zero (the 3D blocks sliding over each other at first
             // touch: no convergence after four step cuts).
-            let by_active_set = input.method.lagged_friction_threshold();
+            let by_active_set = input.method.closed_by_active_set();
+            let lagged = input.method.lagged_friction_threshold();
             // A point of the contact patch that the other pass holds (`area_law_patch`) is
             // closed for a law that reads only the status.
             let in_patch = obstacle.is_none() && patch.get(s).copied().unwrap_or(false);
@@ -410,7 +411,7 @@ where
                 } else {
                     0.0
                 }
-            } else if by_active_set {
+            } else if lagged {
                 input.friction_normals.get(&key).copied().unwrap_or(0.0)
             } else {
                 normal_force
@@ -439,7 +440,7 @@ where
                         input.slip_directions.get(&key),
                     );
                     anchor = Some(map.anchor);
-                    if !by_active_set && law.follows_normal_force() {
+                    if !lagged && law.follows_normal_force() {
                         d_normal_force = map.d_limit * law.slip_limit(1.0, area);
                     }
                     (map.force, map.tangent)

@@ -397,16 +397,26 @@ where
     /// the closest point's weights: the patch's friction limit stays mu times all the load it
     /// carries. (Frictionless and not passed on, a 5 cm block sliding on a coarser one under
     /// Coulomb 0.3 slowed at 0.67 (2D) and 0.31 (3D) of mu g: its perimeter nodes were edge
-    /// pairs and carried most of its weight.)
+    /// pairs and carried most of its weight.) A node holds while its pair is closed (`closed`:
+    /// the method's status, not the sign of its own force): a holding node whose own force
+    /// hovers about zero would otherwise take and drop the load of its neighbours' edge pairs
+    /// from one pass to the next (the 240 Hz rubber stack cycled on that, a node's threshold
+    /// 0.65 N and 0 in turn while its own force read +0.011 N and -0.006 N).
     fn threshold_samples(
         &self,
         pairs: &[PairOutcome<D>],
         x: &[SVector<f64, D>],
+        closed: &dyn Fn(&PairOutcome<D>) -> bool,
     ) -> Vec<ThresholdSample<ContactKey>> {
         let mut forces: BTreeMap<ContactKey, f64> = pairs
             .iter()
             .filter(|p| p.carried_by.is_none())
-            .map(|p| (p.key, p.normal_force))
+            .map(|p| (p.key, p.normal_force.max(0.0)))
+            .collect();
+        let holds: BTreeSet<ContactKey> = pairs
+            .iter()
+            .filter(|p| p.carried_by.is_none() && closed(p))
+            .map(|p| p.key)
             .collect();
         for p in pairs {
             let Some(facet) = p.carried_by else {
@@ -416,24 +426,22 @@ where
                 continue;
             }
             let body = MasterId::Body(self.body_of_node(p.key.0));
-            let holding: Vec<(ContactKey, f64)> = facet
+            let mut holding: Vec<(ContactKey, f64)> = facet
                 .iter()
-                .filter(|&&(n, w)| w > 0.0 && forces.get(&(n, body)).is_some_and(|&f| f > 0.0))
+                .filter(|&&(n, w)| w > 0.0 && holds.contains(&(n, body)))
                 .map(|&(n, w)| ((n, body), w))
                 .collect();
-            let mut holding = holding;
             if holding.is_empty() {
                 // None of the facet's nodes holds (released while the edge pairs took the
                 // load): the nearest node that does.
-                let nearest = forces
+                let nearest = holds
                     .iter()
-                    .filter(|&(&(n, m), &f)| m == body && f > 0.0 && n != p.key.0)
-                    .map(|(&key, _)| key)
+                    .filter(|&&(n, m)| m == body && n != p.key.0)
                     .min_by(|a, b| {
                         let d = |k: &ContactKey| (x[k.0] - x[p.key.0]).norm_squared();
                         d(a).total_cmp(&d(b))
                     });
-                holding.extend(nearest.map(|key| (key, 1.0)));
+                holding.extend(nearest.map(|&key| (key, 1.0)));
             }
             let total: f64 = holding.iter().map(|(_, w)| w).sum();
             for (key, w) in holding {
@@ -796,7 +804,14 @@ where
                     // A lagged threshold (implicit projection's return map, or the smooth law)
                     // follows the normal force until it settles; the penalty methods' return
                     // map reads the current normal force instead.
-                    let samples = self.threshold_samples(&terms.pairs, &x_gap);
+                    let closed = |p: &PairOutcome<D>| {
+                        if method.closed_by_active_set() {
+                            vars.active.contains(&p.key)
+                        } else {
+                            p.normal_force > 0.0
+                        }
+                    };
+                    let samples = self.threshold_samples(&terms.pairs, &x_gap, &closed);
                     if let Some(next) = threshold_change(&samples, &friction_normals) {
                         done = false;
                         friction_normals = next;

@@ -168,6 +168,10 @@ impl Method for ImplicitProjection {
         true
     }
 
+    fn closed_by_active_set(&self) -> bool {
+        true
+    }
+
     /// The held normal velocity turns with the master's normal: without that term Newton
     /// converges linearly where a fold slides along itself (the hairpin strip: a factor of
     /// about 2.5 per iteration, stalling above the tolerance).

@@ -301,6 +301,13 @@ pub(crate) trait Method: Sync {
     fn lagged_friction_threshold(&self) -> bool {
         false
     }
+
+    /// Whether a pair counts as closed while it is in the active set (implicit projection,
+    /// whose normal force is exact only when the active set has converged) rather than while
+    /// its normal force is positive.
+    fn closed_by_active_set(&self) -> bool {
+        false
+    }
 }
 
 /// The implementation of a method.
