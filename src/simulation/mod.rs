@@ -113,6 +113,10 @@ pub struct StepReport {
     pub contacts: Vec<(usize, f64, f64)>,
     /// Times the step was cut in two (no convergence, or a cell turned inside out).
     pub cuts: usize,
+    /// Of those cuts, the ones whose attempt at the larger size spent `max_iterations`
+    /// (rather than cycling, running out of contact passes or turning a cell inside out).
+    #[serde(default)]
+    pub cuts_out_of_iterations: usize,
     /// Whether Newton's plain iteration stalled on the step (or on a piece of it) and the
     /// globalized one solved it: a line search on the step's energy, and the secant tangent
     /// for friction slips that turned (`Simulation::step` tries it before it cuts a step).

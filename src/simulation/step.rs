@@ -154,6 +154,11 @@ where
                 | Error::InvertedCell { .. }
                 | Error::Factorization { .. }),
             ) if depth < MAX_CUTS => {
+                let out_of_iterations = matches!(
+                    e,
+                    Error::NotConverged { iterations, .. }
+                        if iterations >= self.model.settings.max_iterations
+                );
                 recorder.log(
                     self,
                     &format!(
@@ -162,7 +167,9 @@ where
                         self.state.time
                     ),
                 );
-                self.advance_in_halves(h, recorder, depth, last_piece)
+                let mut report = self.advance_in_halves(h, recorder, depth, last_piece)?;
+                report.cuts_out_of_iterations += usize::from(out_of_iterations);
+                Ok(report)
             }
             Err(Error::Factorization { step, message }) => Err(Error::Factorization {
                 step,
@@ -204,6 +211,7 @@ where
         self.shift_obstacles(-lag, &velocities);
         second.iterations += first.iterations;
         second.cuts += first.cuts + 1;
+        second.cuts_out_of_iterations += first.cuts_out_of_iterations;
         second.held_contacts = second.held_contacts.max(first.held_contacts);
         if first.held_tension / first.compression.max(f64::MIN_POSITIVE)
             > second.held_tension / second.compression.max(f64::MIN_POSITIVE)
@@ -820,6 +828,7 @@ where
             contact_forces,
             contacts,
             cuts: 0,
+            cuts_out_of_iterations: 0,
             globalized: false,
             held_contacts: vars.locked.len(),
             held_tension,

@@ -803,7 +803,8 @@ fn step_cuts_are_a_warning() {
     assert_eq!(
         w[1],
         "5 step(s) did not converge at full size and were cut (5 cut(s) in all), the first at \
-         step 102 (t = 1.020000e-1 s); a smaller time_step avoids the cuts",
+         step 102 (t = 1.020000e-1 s); 5 of them spent max_iterations = 10 at full size: a \
+         larger simulation.max_iterations, or a smaller time_step, avoids those cuts",
     );
     // The cuts' own energy: each cut step's halves re-express the state for half the step
     // and back (`step_change.rs`), which moves the block by a(h/2)(v0 - v1) across the
