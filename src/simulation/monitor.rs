@@ -179,8 +179,11 @@ pub struct RunMonitor {
     cut_steps: usize,
     cuts: usize,
     first_cut: Option<(usize, f64)>,
-    /// Cut steps with a cut made because an attempt spent `max_iterations`, and that limit.
+    /// Cut steps with a cut made because an attempt spent `max_iterations`, and that limit
+    /// (defaults: a checkpoint written before 2026-11-30 still loads).
+    #[serde(default)]
     cut_steps_out_of_iterations: usize,
+    #[serde(default)]
     max_iterations: usize,
     /// Steps in which implicit projection's active set cycled (points held), the first such
     /// step and its time, and the most points held in one step.
