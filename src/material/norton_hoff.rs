@@ -281,8 +281,8 @@ mod definiteness {
     /// The tube crush's point that Rust 1.95 and 1.96 compiled wrong at opt-level 3
     /// (`rust-toolchain.toml`): the release build gave the viscosity's (zz, hoop) entry the value
     /// of the outer product's (hoop, hoop) entry, -1.72e8 instead of 2.90e7 Pa s, and an
-    /// indefinite tangent. The tests run at opt-level 1; `cargo test --release` runs this one as
-    /// the release build computes it.
+    /// indefinite tangent. The tests run at opt-level 1; `.ci/run` runs this one again with the
+    /// crate at opt-level 3, as the release build computes it.
     #[test]
     fn the_tube_crush_viscosity_is_computed_as_written() {
         let law = NortonHoff::new(8e7, 0.1, 7800.0, 1e7).unwrap();
