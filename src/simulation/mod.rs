@@ -138,6 +138,13 @@ pub struct StepReport {
     /// piece's of [`StepReport::held_tension`]).
     #[serde(default)]
     pub compression: f64,
+    /// How far a point held open ends on the wrong side of implicit projection's law (m): the
+    /// largest `-max(w_n h / 2, g)` of the points held open (`w_n` the relative normal end
+    /// velocity, `g` the eq 22 gap), positive only for a point that penetrates while it still
+    /// approaches, which the law would have closed; 0 when every point held open ends clear or
+    /// leaving, and for the other methods. The largest of the pieces of a cut step.
+    #[serde(default)]
+    pub held_open_depth: f64,
     /// Times implicit projection's active set came back to a set already seen in the step
     /// (a cycle), over every attempt of the step, the cut ones included. 0 for the other
     /// methods.

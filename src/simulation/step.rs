@@ -213,6 +213,7 @@ where
         second.cuts += first.cuts + 1;
         second.cuts_out_of_iterations += first.cuts_out_of_iterations;
         second.held_contacts = second.held_contacts.max(first.held_contacts);
+        second.held_open_depth = second.held_open_depth.max(first.held_open_depth);
         if first.held_tension / first.compression.max(f64::MIN_POSITIVE)
             > second.held_tension / second.compression.max(f64::MIN_POSITIVE)
         {
@@ -815,6 +816,14 @@ where
                 (t, c + p.normal_force.max(0.0))
             }
         });
+        // How far the points held open end on the wrong side of the law: a point that
+        // penetrates while it approaches would have been activated.
+        let held_open_depth = terms
+            .pairs
+            .iter()
+            .filter(|p| vars.locked.contains(&p.key) && !vars.active.contains(&p.key))
+            .map(|p| -(0.5 * h * p.normal_velocity).max(p.gap))
+            .fold(0.0_f64, f64::max);
         let report = StepReport {
             step,
             time: t0 + h,
@@ -833,6 +842,7 @@ where
             held_contacts: vars.locked.len(),
             held_tension,
             compression,
+            held_open_depth,
             contact_cycles: 0,
             factorisations: 0,
         };
