@@ -13,7 +13,7 @@ use super::observe::{NullRecorder, Recorder};
 use super::{end_positions, invalid, Simulation, StepReport};
 use crate::assembly;
 use crate::contact::methods::projection::{project, Applied, BodyImpulse, ProjectionContext};
-use crate::contact::methods::{self, EndProjection, Method};
+use crate::contact::methods::{self, implicit_projection, EndProjection, Method};
 use crate::contact::{
     ContactKey, ContactMethod, ContactPair, GapDisplacement, Master, MasterId, ProjectionEnergy,
     ProjectionMetric,
@@ -816,13 +816,14 @@ where
                 (t, c + p.normal_force.max(0.0))
             }
         });
-        // How far the points held open end on the wrong side of the law: a point that
-        // penetrates while it approaches would have been activated.
+        // How far the points held open end on the wrong side of the law, in the gap's terms
+        // (the law's constraint, h/2 per unit): a point that penetrates while it approaches
+        // would have been activated.
         let held_open_depth = terms
             .pairs
             .iter()
             .filter(|p| vars.locked.contains(&p.key) && !vars.active.contains(&p.key))
-            .map(|p| -(0.5 * h * p.normal_velocity).max(p.gap))
+            .map(|p| -0.5 * h * implicit_projection::constraint(p.normal_velocity, p.gap, h))
             .fold(0.0_f64, f64::max);
         let report = StepReport {
             step,

@@ -40,7 +40,7 @@ pub(crate) const RELEASES_BEFORE_LOCK: u32 = 2;
 
 /// The constraint of an active point, `max(w_n, 2 g / h)` (m/s): zero when it is held on the
 /// master (`w_n = 0`, `g <= 0`) or closes the gap exactly while approaching (`g = 0`).
-fn constraint(normal_velocity: f64, gap: f64, time_step: f64) -> f64 {
+pub(crate) fn constraint(normal_velocity: f64, gap: f64, time_step: f64) -> f64 {
     normal_velocity.max(2.0 * gap / time_step)
 }
 
