@@ -11,13 +11,19 @@ use super::newton::edge_pair;
 use super::observe::ContactRecord;
 use super::Simulation;
 use crate::contact::gap::{facet_gap, facet_gap_hessian, obstacle_gap_hessian};
-use crate::contact::methods::{Method, NormalInput, NormalLaw, OuterVariables, PairOutcome};
+use crate::contact::methods::{
+    HeldConstraint, Method, NormalInput, NormalLaw, OuterVariables, PairOutcome,
+};
 use crate::contact::{ContactKey, ContactPair, FrictionLaw, Master, MasterId, Obstacle};
 use crate::dim::{Dim, Kinematics, SpatialDim};
 use crate::friction::return_map;
 
 /// A rank-one matrix `u v^T` with sparse `u` and `v` (index, value).
 pub(super) type RankOne = (Vec<(usize, f64)>, Vec<(usize, f64)>);
+
+/// A held constraint in an iteration: its key, value (m/s) and gradient with respect to the
+/// end velocities (index, value).
+pub(super) type HeldRow = (ContactKey, f64, Vec<(usize, f64)>);
 
 /// Everything contact adds to one iteration.
 #[derive(Default)]
@@ -52,6 +58,17 @@ pub(super) struct ContactTerms<const D: usize> {
     /// the trapezoid increment `h (w0 + w1) / 2` the scheme books forces on (constraint
     /// forces' work is in `dissipation_rate`).
     pub normal_work_rate: f64,
+    /// The held constraints ([`HeldConstraint`]): each one's key, value (m/s) and gradient
+    /// with respect to the end velocities (index, value), from which Newton predicts the
+    /// value after its increment.
+    pub held: Vec<HeldRow>,
+    /// Newton's merit: what the held forces' penalty adds to the residual (N; flat, empty
+    /// when nothing) beyond the forces their linearised prediction gives,
+    /// `-penalty (C - C_predicted)` spread like the force ...
+    pub merit_excess: Vec<f64>,
+    /// ... and the sum of squares of the same curvature errors in force units of the slave's
+    /// diagonal, `diagonal (C - C_predicted)` (N^2).
+    pub merit_constraints: f64,
 }
 
 /// A pair's geometry, kinematics and normal law: the normal phase of the contact terms.
@@ -104,6 +121,10 @@ pub(super) struct TermsInput<'a, const D: usize> {
     /// The friction forces' directions at Newton's previous iterate (unit vectors; see
     /// `return_map`).
     pub slip_directions: &'a BTreeMap<ContactKey, SVector<f64, D>>,
+    /// The held constraints' values that Newton's last increment predicted from their
+    /// linearisation (m/s): their forces' geometric tangent and Newton's merit read the
+    /// prediction's force (see `newton::merit`).
+    pub held_predictions: &'a BTreeMap<ContactKey, f64>,
 }
 
 fn block_entries<const D: usize>(
@@ -480,11 +501,37 @@ where
                     }
                 }
             }
+            // A held constraint's force as its linearised prediction gives it (the solve's
+            // residual keeps the penalty's, `newton::merit`), and the constraint's gradient:
+            // `n` on the involved nodes, plus the turning below.
+            let mut geometric_force = normal_law.geometric_force;
+            let mut held_gradient: Option<Vec<(usize, f64)>> = None;
+            if let Some(HeldConstraint { value, penalty }) = normal_law.held {
+                if let Some(&predicted) = input.held_predictions.get(&key) {
+                    let curvature = value - predicted;
+                    let excess = -penalty * curvature;
+                    geometric_force -= excess;
+                    if excess != 0.0 {
+                        terms.merit_excess.resize(ndof, 0.0);
+                        for &(n, c) in nodes {
+                            for k in 0..D {
+                                terms.merit_excess[n * D + k] += c * normal[k] * excess;
+                            }
+                        }
+                    }
+                    terms.merit_constraints += (law_input.diagonal * curvature).powi(2);
+                }
+                held_gradient = Some(
+                    nodes
+                        .iter()
+                        .flat_map(|&(n, c)| (0..D).map(move |i| (n * D + i, c * normal[i])))
+                        .collect(),
+                );
+            }
             // Tangent: d(-force)/dv1 on every pair of involved nodes.
             if normal_stiffness > 0.0 || law != FrictionLaw::Frictionless {
                 let nn = normal * normal.transpose();
-                let turning =
-                    normal_law.geometric_force != 0.0 || normal_law.velocity_stiffness > 0.0;
+                let turning = geometric_force != 0.0 || normal_law.velocity_stiffness > 0.0;
                 let hessian: Option<Vec<Vec<f64>>> = if turning {
                     match pair.master {
                         Master::Facet(f) => {
@@ -561,6 +608,12 @@ where
                         .flat_map(|&(n, c)| (0..D).map(move |i| (n * D + i, c * normal[i])))
                         .filter(|&(_, x)| x != 0.0)
                         .collect();
+                    if let Some(gradient) = &mut held_gradient {
+                        gradient.extend(
+                            row.iter()
+                                .map(|&(i, x)| (i, x / normal_law.velocity_stiffness)),
+                        );
+                    }
                     if !row.is_empty() {
                         terms.coupling.push((column, row));
                     }
@@ -583,14 +636,17 @@ where
                     for (b, &(nb, cb)) in nodes.iter().enumerate() {
                         let block = (nn * normal_stiffness + friction_tangent) * (ca * cb);
                         block_entries(&mut terms.entries, na, nb, &block);
-                        if let (Some(hess), true) = (&hessian, normal_law.geometric_force != 0.0) {
+                        if let (Some(hess), true) = (&hessian, geometric_force != 0.0) {
                             let g = SMatrix::<f64, D, D>::from_fn(|i, j| {
-                                -0.5 * h * normal_law.geometric_force * hess[a * D + i][b * D + j]
+                                -0.5 * h * geometric_force * hess[a * D + i][b * D + j]
                             });
                             block_entries(&mut terms.geometric, na, nb, &g);
                         }
                     }
                 }
+            }
+            if let (Some(gradient), Some(held)) = (held_gradient, normal_law.held) {
+                terms.held.push((key, held.value, gradient));
             }
             if input.method.stores_energy() && gap < 0.0 {
                 terms.energy += 0.5 * self.model.contact.penalty * area * gap * gap;

@@ -9,6 +9,10 @@
 //! Methods*, 2008, section 5.1.2). A residual-norm test rejects the steps that cross a
 //! stick/slip kink: with it, a 3D block whose contacts flip between stick and slip took
 //! dozens of iterations that each backtracked to a sixteenth of the step, and stalled.
+//!
+//! Also the merit the plain Newton's halving compares ([`merit`]).
+
+use super::contact_terms::ContactTerms;
 
 /// The slope, relative to the slope at 0, below which a length is accepted.
 const SLOPE_RATIO: f64 = 0.5;
@@ -52,6 +56,34 @@ pub(super) fn free_dot(a: &[f64], b: &[f64], prescribed: &[Option<f64>]) -> f64 
         .filter(|(_, p)| p.is_none())
         .map(|((x, y), _)| x * y)
         .sum()
+}
+
+/// Newton's merit, the residual norm its backtracking compares (N): the free residual with
+/// each held constraint's force taken at its linearised prediction, together with the
+/// prediction's misses in force units of the slave's diagonal. This is the residual of
+/// Newton on the pair (velocities, forces), whose direction is the penalised system's
+/// (eliminate the force change and the two coincide): the penalised residual alone counts a
+/// held constraint's curvature `penalty` times (implicit projection's 1e4 diagonals), so a
+/// step along a turning master facet raised it 500-fold where its pair predicted well (the
+/// bundled block stack's cut step), and Newton backtracked to a sixteenth. Equal to `norm`
+/// where every held constraint is linear in the velocities (flat, resting obstacles).
+pub(super) fn merit<const D: usize>(
+    norm: f64,
+    residual: &[f64],
+    terms: &ContactTerms<D>,
+    prescribed: &[Option<f64>],
+) -> f64 {
+    if terms.merit_excess.is_empty() && terms.merit_constraints == 0.0 {
+        return norm;
+    }
+    let excess = |i: usize| terms.merit_excess.get(i).copied().unwrap_or(0.0);
+    let free2: f64 = residual
+        .iter()
+        .enumerate()
+        .filter(|&(i, _)| prescribed[i].is_none())
+        .map(|(i, r)| (r + excess(i)).powi(2))
+        .sum();
+    (free2 + terms.merit_constraints).sqrt()
 }
 
 impl LineSearch {
@@ -170,6 +202,23 @@ mod tests {
             "length {s}, slope {}",
             slope(s)
         );
+    }
+
+    /// Without held constraints the merit is the residual norm; with them, the penalty's
+    /// share of the residual beyond the prediction is taken out and the miss added in the
+    /// diagonal's units; prescribed unknowns count in neither.
+    #[test]
+    fn the_merit_measures_held_constraints_in_their_own_units() {
+        let residual = [3.0, 400.0, 7.0];
+        let prescribed = [None, None, Some(0.0)];
+        let mut terms = ContactTerms::<2>::default();
+        assert_eq!(merit(5.0, &residual, &terms, &prescribed), 5.0);
+        // A held force 396 N above its prediction on the second unknown, a miss of 4e-4 m/s
+        // at a diagonal of 1e4 N s/m (4 N).
+        terms.merit_excess = vec![0.0, -396.0, 0.0];
+        terms.merit_constraints = 16.0;
+        let m = merit(400.0, &residual, &terms, &prescribed);
+        assert!((m - (9.0f64 + 16.0 + 16.0).sqrt()).abs() < 1e-12, "{m}");
     }
 
     /// Directions that do not descend are left to the caller.

@@ -11,7 +11,7 @@ use std::collections::{BTreeMap, BTreeSet};
 use nalgebra::SVector;
 
 use super::contact_terms::{ContactTerms, RankOne, TermsInput};
-use super::line_search::{free_dot, LineSearch, Verdict};
+use super::line_search::{free_dot, merit, LineSearch, Verdict};
 use super::linear_solve::woodbury;
 use super::observe::{IterationInfo, Recorder};
 use super::{body_of, end_positions, Simulation};
@@ -531,7 +531,15 @@ where
         let mut terms = ContactTerms::<D>::default();
         let mut candidates = 0;
         let mut previous_norm = f64::INFINITY;
+        let mut previous_merit = f64::INFINITY;
         let mut last_increment: Vec<f64> = Vec::new();
+        // The held constraints' predictions (see `merit`): at the last iterate, and after the
+        // whole of the last increment (Newton's linearisation there), with the share of that
+        // increment taken; between the two the prediction is linear in the share, as Newton's
+        // forces are.
+        let mut held_linear: BTreeMap<ContactKey, (f64, f64)> = BTreeMap::new();
+        let mut held_predictions: BTreeMap<ContactKey, f64> = BTreeMap::new();
+        let mut predicted_length = 1.0;
         // -M v0 / h: the same in every iteration.
         let mut momentum0 = vec![0.0; ndof];
         assembly::symmetric_mul_add(&self.matrices.mass, v0, -1.0 / h, &mut momentum0);
@@ -585,6 +593,10 @@ where
                     method.start(&mut vars, &starting);
                     vars.started = true;
                 }
+                held_predictions = held_linear
+                    .iter()
+                    .map(|(&key, &(from, to))| (key, from + predicted_length * (to - from)))
+                    .collect();
                 terms = self.contact_terms(
                     &pairs,
                     &TermsInput {
@@ -600,6 +612,7 @@ where
                         friction_anchors: &friction_anchors,
                         diagonal: &diagonal,
                         slip_directions: &slip_directions,
+                        held_predictions: &held_predictions,
                     },
                 );
             }
@@ -650,12 +663,14 @@ where
                     if backtracks < MAX_INVERSION_BACKTRACKS {
                         if let Some(search) = &mut line {
                             search.halved();
-                            v1 = search.iterate(search.length());
+                            predicted_length = search.length();
+                            v1 = search.iterate(predicted_length);
                             backtracks += 1;
                             continue;
                         }
                         if !last_increment.is_empty() {
                             halve_last_increment(&mut v1, &mut last_increment);
+                            predicted_length *= 0.5;
                             backtracks += 1;
                             continue;
                         }
@@ -715,6 +730,7 @@ where
             let scale = scale2.iter().fold(0.0f64, |m, s| m.max(s.sqrt()));
             let norm = free_norm2.sqrt();
             let rel = if scale > 0.0 { norm / scale } else { 0.0 };
+            let merit = merit(norm, &residual, &terms, &self.prescribed);
             // Kacanov's secant iteration until the residual is small, then Newton.
             secant = rel > SECANT_UNTIL;
             if !rel.is_finite() {
@@ -726,12 +742,16 @@ where
                 });
             }
             // Backtracking: contact and friction are not smooth, and a full Newton step can
-            // overshoot (first touch with a stiff penalty); halve it while the residual grows.
+            // overshoot (first touch with a stiff penalty); halve it while the merit grows. An
+            // iterate that converged is kept: the merit of the one before can be smaller than
+            // its residual (a held constraint's curvature): the bundled folding strip's step
+            // 342 took back converged iterates 28 times.
             if let Some(search) = &mut line {
                 // The line search on the step's energy (`line_search`).
                 match search.judge(free_dot(&residual, search.direction(), &self.prescribed)) {
                     Verdict::Retry(length) => {
                         v1 = search.iterate(length);
+                        predicted_length = length;
                         backtracks += 1;
                         continue;
                     }
@@ -739,16 +759,19 @@ where
                 }
             } else if contact_in_newton
                 && !last_increment.is_empty()
-                && norm > previous_norm
+                && merit > previous_merit
+                && rel > tolerance
                 && backtracks < MAX_BACKTRACKS
             {
                 halve_last_increment(&mut v1, &mut last_increment);
+                predicted_length *= 0.5;
                 backtracks += 1;
                 continue;
             }
             backtracks = 0;
             let stalled_from = previous_norm;
             previous_norm = norm;
+            previous_merit = merit;
             if globalized {
                 slip_directions = terms
                     .pairs
@@ -835,6 +858,8 @@ where
                 }
                 passes += 1;
                 previous_norm = f64::INFINITY;
+                previous_merit = f64::INFINITY;
+                held_linear.clear();
                 floor_stalls = 0;
                 last_increment.clear();
                 line = None;
@@ -933,6 +958,21 @@ where
                 line = LineSearch::new(v1.clone(), increment.clone(), slope);
             }
 
+            held_linear = terms
+                .held
+                .iter()
+                .map(|(key, value, gradient)| {
+                    let change = gradient
+                        .iter()
+                        .filter(|&&(i, _)| self.prescribed[i].is_none())
+                        .map(|&(i, g)| g * increment[i])
+                        .sum::<f64>();
+                    // An iterate's own prediction, or its value where it had none.
+                    let from = held_predictions.get(key).copied().unwrap_or(*value);
+                    (*key, (from, value + change))
+                })
+                .collect();
+            predicted_length = 1.0;
             let mut inc2 = 0.0;
             for i in 0..ndof {
                 if self.prescribed[i].is_none() {

@@ -61,8 +61,9 @@ pub struct State {
     pub obstacle_angular_velocities: Vec<f64>,
     /// Energy stored in soft-way penalties at the end of the last step (J).
     pub contact_energy: f64,
-    /// Augmented Lagrangian multipliers carried from step to step: (slave node, master,
-    /// contact pressure (Pa)), for the pairs closed at the end of the last step only.
+    /// Multipliers carried from step to step: (slave node, master, value). The augmented
+    /// Lagrangian's contact pressures (Pa), for the pairs closed at the end of the last step
+    /// only; implicit projection's multiplier forces (N) of the points it held then.
     pub multipliers: Vec<(usize, MasterId, f64)>,
     /// The normal forces that set the friction thresholds (slave node, master, force (N)),
     /// carried from step to step as the start of the fixed point on the threshold.

@@ -17,7 +17,8 @@
 //! point changes status a bounded number of times, so the iteration ends.
 
 use super::{
-    EndProjection, Method, NormalInput, NormalLaw, OuterUpdate, OuterVariables, PairStatus,
+    EndProjection, HeldConstraint, Method, NormalInput, NormalLaw, OuterUpdate, OuterVariables,
+    PairStatus,
 };
 use crate::contact::{ContactKey, ContactSettings};
 
@@ -63,7 +64,8 @@ impl Method for ImplicitProjection {
         }
         let rho = VELOCITY_PENALTY * input.diagonal;
         let lambda = vars.multipliers.get(&input.key).copied().unwrap_or(0.0);
-        let force = lambda - rho * constraint(input.normal_velocity, input.gap, input.time_step);
+        let value = constraint(input.normal_velocity, input.gap, input.time_step);
+        let force = lambda - rho * value;
         let holds_velocity = input.normal_velocity >= 2.0 * input.gap / input.time_step;
         NormalLaw {
             force,
@@ -71,6 +73,10 @@ impl Method for ImplicitProjection {
             geometric_force: force,
             velocity_stiffness: if holds_velocity { rho } else { 0.0 },
             predicted_force: 0.0,
+            held: Some(HeldConstraint {
+                value,
+                penalty: rho,
+            }),
         }
     }
 
@@ -155,6 +161,12 @@ impl Method for ImplicitProjection {
             }
         }
         OuterUpdate::Again
+    }
+
+    /// The held points' forces start the next step's multipliers: a point that stays held
+    /// needs no pass to find its force again.
+    fn carries_multipliers(&self) -> bool {
+        true
     }
 
     // Coulomb and Tresca as the return map: the normal force of an active point is a

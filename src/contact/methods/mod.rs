@@ -116,6 +116,20 @@ pub(crate) struct NormalLaw {
     /// sets the first Newton direction as if the pair were still closed; it is not in the
     /// residual (which keeps the law's zero). 0 elsewhere.
     pub predicted_force: f64,
+    /// The constraint a held point's force enforces, where the force is a multiplier less a
+    /// penalty times that constraint (implicit projection's active points); `None` elsewhere.
+    pub held: Option<HeldConstraint>,
+}
+
+/// A constraint held by `force = lambda - penalty * value`: Newton keeps the force's
+/// linearised prediction beside it (`newton`'s merit), so that the constraint's curvature is
+/// measured in its own units rather than times the penalty.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct HeldConstraint {
+    /// The constraint's value at the iterate (m/s).
+    pub value: f64,
+    /// The penalty that holds it (N s/m).
+    pub penalty: f64,
 }
 
 /// One pair's forces in an iteration, as the outer updates and the records see them.

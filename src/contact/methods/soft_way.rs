@@ -19,6 +19,7 @@ pub(crate) fn penalty_law(lambda: f64, input: &NormalInput, zeta: f64) -> Normal
             geometric_force: p * input.area,
             velocity_stiffness: 0.0,
             predicted_force: 0.0,
+            held: None,
         }
     } else {
         NormalLaw::default()
@@ -57,6 +58,7 @@ pub(crate) fn secant_penalty_law(input: &NormalInput, zeta: f64) -> NormalLaw {
         geometric_force: p * input.area,
         velocity_stiffness: 0.0,
         predicted_force: 0.0,
+        held: None,
     }
 }
 
