@@ -12,7 +12,10 @@
 //!
 //! Also the merit the plain Newton's halving compares ([`merit`]).
 
-use super::contact_terms::ContactTerms;
+use std::collections::BTreeMap;
+
+use super::contact_terms::{ContactTerms, HeldRow};
+use crate::contact::ContactKey;
 
 /// The slope, relative to the slope at 0, below which a length is accepted.
 const SLOPE_RATIO: f64 = 0.5;
@@ -84,6 +87,62 @@ pub(super) fn merit<const D: usize>(
         .map(|(i, r)| (r + excess(i)).powi(2))
         .sum();
     (free2 + terms.merit_constraints).sqrt()
+}
+
+/// The held constraints' predictions that [`merit`] measures against: each one's value at the
+/// last iterate (its own prediction, or its value where it had none) and after the whole of
+/// the last increment (Newton's linearisation there). Between the two the prediction is
+/// linear in the share of the increment taken, as Newton's forces are.
+#[derive(Default)]
+pub(super) struct HeldPredictions {
+    linear: BTreeMap<ContactKey, (f64, f64)>,
+    current: BTreeMap<ContactKey, f64>,
+    length: f64,
+}
+
+impl HeldPredictions {
+    /// The predictions at the share of the last increment being tried, for the terms.
+    pub(super) fn update(&mut self) -> &BTreeMap<ContactKey, f64> {
+        let length = self.length;
+        self.current = self
+            .linear
+            .iter()
+            .map(|(&key, &(from, to))| (key, from + length * (to - from)))
+            .collect();
+        &self.current
+    }
+
+    /// The share of the last increment taken (a line search's length).
+    pub(super) fn set_length(&mut self, length: f64) {
+        self.length = length;
+    }
+
+    /// The last increment was halved.
+    pub(super) fn halve(&mut self) {
+        self.length *= 0.5;
+    }
+
+    /// A new pass: no increment to predict along.
+    pub(super) fn clear(&mut self) {
+        self.linear.clear();
+    }
+
+    /// Newton takes `increment` from the iterate whose held constraints are `held`.
+    pub(super) fn take(&mut self, held: &[HeldRow], increment: &[f64], prescribed: &[Option<f64>]) {
+        self.linear = held
+            .iter()
+            .map(|(key, value, gradient)| {
+                let change = gradient
+                    .iter()
+                    .filter(|&&(i, _)| prescribed[i].is_none())
+                    .map(|&(i, g)| g * increment[i])
+                    .sum::<f64>();
+                let from = self.current.get(key).copied().unwrap_or(*value);
+                (*key, (from, value + change))
+            })
+            .collect();
+        self.length = 1.0;
+    }
 }
 
 impl LineSearch {

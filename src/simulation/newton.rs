@@ -11,7 +11,7 @@ use std::collections::{BTreeMap, BTreeSet};
 use nalgebra::SVector;
 
 use super::contact_terms::{ContactTerms, RankOne, TermsInput};
-use super::line_search::{free_dot, merit, LineSearch, Verdict};
+use super::line_search::{free_dot, merit, HeldPredictions, LineSearch, Verdict};
 use super::linear_solve::woodbury;
 use super::observe::{IterationInfo, Recorder};
 use super::{body_of, end_positions, Simulation};
@@ -533,13 +533,7 @@ where
         let mut previous_norm = f64::INFINITY;
         let mut previous_merit = f64::INFINITY;
         let mut last_increment: Vec<f64> = Vec::new();
-        // The held constraints' predictions (see `merit`): at the last iterate, and after the
-        // whole of the last increment (Newton's linearisation there), with the share of that
-        // increment taken; between the two the prediction is linear in the share, as Newton's
-        // forces are.
-        let mut held_linear: BTreeMap<ContactKey, (f64, f64)> = BTreeMap::new();
-        let mut held_predictions: BTreeMap<ContactKey, f64> = BTreeMap::new();
-        let mut predicted_length = 1.0;
+        let mut predictions = HeldPredictions::default();
         // -M v0 / h: the same in every iteration.
         let mut momentum0 = vec![0.0; ndof];
         assembly::symmetric_mul_add(&self.matrices.mass, v0, -1.0 / h, &mut momentum0);
@@ -593,10 +587,7 @@ where
                     method.start(&mut vars, &starting);
                     vars.started = true;
                 }
-                held_predictions = held_linear
-                    .iter()
-                    .map(|(&key, &(from, to))| (key, from + predicted_length * (to - from)))
-                    .collect();
+                let held_predictions = predictions.update();
                 terms = self.contact_terms(
                     &pairs,
                     &TermsInput {
@@ -612,7 +603,7 @@ where
                         friction_anchors: &friction_anchors,
                         diagonal: &diagonal,
                         slip_directions: &slip_directions,
-                        held_predictions: &held_predictions,
+                        held_predictions,
                     },
                 );
             }
@@ -663,14 +654,14 @@ where
                     if backtracks < MAX_INVERSION_BACKTRACKS {
                         if let Some(search) = &mut line {
                             search.halved();
-                            predicted_length = search.length();
-                            v1 = search.iterate(predicted_length);
+                            predictions.set_length(search.length());
+                            v1 = search.iterate(search.length());
                             backtracks += 1;
                             continue;
                         }
                         if !last_increment.is_empty() {
                             halve_last_increment(&mut v1, &mut last_increment);
-                            predicted_length *= 0.5;
+                            predictions.halve();
                             backtracks += 1;
                             continue;
                         }
@@ -751,7 +742,7 @@ where
                 match search.judge(free_dot(&residual, search.direction(), &self.prescribed)) {
                     Verdict::Retry(length) => {
                         v1 = search.iterate(length);
-                        predicted_length = length;
+                        predictions.set_length(length);
                         backtracks += 1;
                         continue;
                     }
@@ -764,7 +755,7 @@ where
                 && backtracks < MAX_BACKTRACKS
             {
                 halve_last_increment(&mut v1, &mut last_increment);
-                predicted_length *= 0.5;
+                predictions.halve();
                 backtracks += 1;
                 continue;
             }
@@ -859,7 +850,7 @@ where
                 passes += 1;
                 previous_norm = f64::INFINITY;
                 previous_merit = f64::INFINITY;
-                held_linear.clear();
+                predictions.clear();
                 floor_stalls = 0;
                 last_increment.clear();
                 line = None;
@@ -958,21 +949,7 @@ where
                 line = LineSearch::new(v1.clone(), increment.clone(), slope);
             }
 
-            held_linear = terms
-                .held
-                .iter()
-                .map(|(key, value, gradient)| {
-                    let change = gradient
-                        .iter()
-                        .filter(|&&(i, _)| self.prescribed[i].is_none())
-                        .map(|&(i, g)| g * increment[i])
-                        .sum::<f64>();
-                    // An iterate's own prediction, or its value where it had none.
-                    let from = held_predictions.get(key).copied().unwrap_or(*value);
-                    (*key, (from, value + change))
-                })
-                .collect();
-            predicted_length = 1.0;
+            predictions.take(&terms.held, &increment, &self.prescribed);
             let mut inc2 = 0.0;
             for i in 0..ndof {
                 if self.prescribed[i].is_none() {
