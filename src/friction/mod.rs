@@ -39,7 +39,7 @@
 //!
 //! **Implicit projection** has the same return map with Coulomb's threshold taken from the
 //! previous pass's normal force (its normal force is a multiplier, exact only when the active
-//! set has converged: the crate-internal `threshold_change` is that fixed point) and a
+//! set has converged: the crate-internal `ThresholdIteration` is that fixed point) and a
 //! tangential stiffness of the slave's diagonal per step (no penalty to borrow).
 //! Viscoplastic friction is the smooth law `F_t = -a A (|v_t|^2 + v_reg^2)^((p-1)/2) v_t` on
 //! the mean relative tangential velocity under every method ([`FrictionLaw::force`]).
@@ -48,12 +48,13 @@
 //! slip of eq 22 (the displacement of the configuration update): the energy account stays
 //! closed, the elastic slip's energy included (returned when a stuck contact unloads).
 
-use std::collections::BTreeMap;
-
 use nalgebra::{SMatrix, SVector};
 use serde::{Deserialize, Serialize};
 
 use crate::error::{Error, Result};
+
+mod threshold;
+pub(crate) use threshold::{ThresholdIteration, ThresholdSample};
 
 /// Default regularisation velocity of the friction laws (m/s).
 pub const DEFAULT_REGULARIZATION: f64 = 1e-6;
@@ -287,50 +288,6 @@ pub(crate) fn return_map<const D: usize>(
         },
         d_limit: t,
     }
-}
-
-/// One contact's normal force after a converged inner solve, for the threshold fixed point.
-#[derive(Debug, Clone, Copy)]
-pub(crate) struct ThresholdSample<K> {
-    /// The contact (slave, master).
-    pub key: K,
-    /// The law acting on it.
-    pub law: FrictionLaw,
-    /// Its normal force (N).
-    pub normal_force: f64,
-}
-
-/// The next Coulomb thresholds (normal forces by contact) after a converged inner solve, or
-/// `None` when they changed by at most `1e-6` of the largest normal force (the fixed point has
-/// settled). Only Coulomb follows the force; the other laws need the contact status only.
-pub(crate) fn threshold_change<K: Ord + Copy>(
-    samples: &[ThresholdSample<K>],
-    current: &BTreeMap<K, f64>,
-) -> Option<BTreeMap<K, f64>> {
-    let scale = samples
-        .iter()
-        .map(|p| p.normal_force.abs())
-        .fold(0.0, f64::max);
-    let mut change: f64 = 0.0;
-    let mut next = BTreeMap::new();
-    for p in samples {
-        let f = p.normal_force.max(0.0);
-        let old = current.get(&p.key).copied().unwrap_or(0.0);
-        if matches!(p.law, FrictionLaw::Coulomb { .. }) {
-            change = change.max((f - old).abs());
-        }
-        if f > 0.0 {
-            next.insert(p.key, f);
-        }
-    }
-    change = change.max(
-        current
-            .iter()
-            .filter(|(k, _)| !next.contains_key(k))
-            .map(|(_, f)| f.abs())
-            .fold(0.0, f64::max),
-    );
-    (change > 1e-6 * scale.max(f64::MIN_POSITIVE)).then_some(next)
 }
 
 #[cfg(test)]

@@ -20,7 +20,7 @@ use crate::contact::methods::{self, Method, OuterUpdate, OuterVariables, PairOut
 use crate::contact::{ContactKey, ContactPair, Detector, FrictionLaw, Master, MasterId, Obstacle};
 use crate::dim::{Dim, Kinematics, SpatialDim};
 use crate::error::{Error, Result};
-use crate::friction::{threshold_change, ThresholdSample};
+use crate::friction::{ThresholdIteration, ThresholdSample};
 
 /// A residual no larger than this multiple of the contact forces' floating-point noise
 /// (`ContactTerms::round_off`), where an iteration stopped halving it, is converged: Newton
@@ -501,6 +501,7 @@ where
             .iter()
             .map(|&(s, m, f)| ((s, m), f))
             .collect();
+        let mut thresholds = ThresholdIteration::default();
         // The elastic slips of the return-map laws (world components).
         let friction_anchors: BTreeMap<ContactKey, SVector<f64, D>> = self
             .state
@@ -791,6 +792,7 @@ where
                 // Newton converged for the current outer variables.
                 let statuses: Vec<PairStatus> = terms.pairs.iter().map(PairStatus::from).collect();
                 let mut messages = Vec::new();
+                let active_before = vars.active.clone();
                 let outcome =
                     method.outer_update(&statuses, &mut vars, &self.model.contact, h, &mut |m| {
                         messages.push(m)
@@ -802,6 +804,11 @@ where
                 if method.lagged_friction_threshold() {
                     // A released point carries no threshold into its next activation.
                     friction_normals.retain(|k, _| vars.active.contains(k));
+                }
+                if vars.active != active_before {
+                    // Another problem for the thresholds: no mixing across it (a multiplier
+                    // update is the same problem, solved closer).
+                    thresholds.forget();
                 }
                 let mut done = match outcome {
                     OuterUpdate::Converged => true,
@@ -826,7 +833,7 @@ where
                         }
                     };
                     let samples = self.threshold_samples(&terms.pairs, &x_gap, &closed);
-                    if let Some(next) = threshold_change(&samples, &friction_normals) {
+                    if let Some(next) = thresholds.next(&samples, &friction_normals) {
                         done = false;
                         friction_normals = next;
                         // A new threshold is a new problem: an active set seen under the old
