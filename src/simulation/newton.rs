@@ -792,7 +792,8 @@ where
                 // Newton converged for the current outer variables.
                 let statuses: Vec<PairStatus> = terms.pairs.iter().map(PairStatus::from).collect();
                 let mut messages = Vec::new();
-                let active_before = vars.active.clone();
+                // Only friction's thresholds read it.
+                let active_before = frictional.then(|| vars.active.clone());
                 let outcome =
                     method.outer_update(&statuses, &mut vars, &self.model.contact, h, &mut |m| {
                         messages.push(m)
@@ -805,7 +806,7 @@ where
                     // A released point carries no threshold into its next activation.
                     friction_normals.retain(|k, _| vars.active.contains(k));
                 }
-                if vars.active != active_before {
+                if active_before.is_some_and(|before| before != vars.active) {
                     // Another problem for the thresholds: no mixing across it (a multiplier
                     // update is the same problem, solved closer).
                     thresholds.forget();
