@@ -39,12 +39,16 @@ type Update<K> = (BTreeMap<K, f64>, BTreeMap<K, f64>);
 pub(crate) struct ThresholdIteration<K> {
     /// The last updates, oldest first.
     history: Vec<Update<K>>,
+    /// The plain map's change at the last update, relative to the largest normal force (0
+    /// when it settled).
+    last_change: f64,
 }
 
 impl<K> Default for ThresholdIteration<K> {
     fn default() -> Self {
         Self {
             history: Vec::new(),
+            last_change: 0.0,
         }
     }
 }
@@ -53,6 +57,13 @@ impl<K: Ord + Copy> ThresholdIteration<K> {
     /// Drops the previous updates: the next one is plain.
     pub(crate) fn forget(&mut self) {
         self.history.clear();
+    }
+
+    /// How far the thresholds were from settling at the last [`next`](Self::next): the plain
+    /// map's change relative to the largest normal force (0 once they settled). The inner
+    /// solve that follows needs to be no more accurate than a fraction of it.
+    pub(crate) fn last_change(&self) -> f64 {
+        self.last_change
     }
 
     /// The next thresholds (normal forces by contact) after a converged inner solve with
@@ -91,10 +102,13 @@ impl<K: Ord + Copy> ThresholdIteration<K> {
                 .map(|(_, f)| f.abs())
                 .fold(0.0, f64::max),
         );
-        if change <= 1e-6 * scale.max(f64::MIN_POSITIVE) {
+        let scale = scale.max(f64::MIN_POSITIVE);
+        if change <= 1e-6 * scale {
             self.history.clear();
+            self.last_change = 0.0;
             return None;
         }
+        self.last_change = change / scale;
         self.history.push((thresholds, forces));
         if self.history.len() > MEMORY + 1 {
             self.history.remove(0);
@@ -237,9 +251,14 @@ mod tests {
             .next(&sample(1.0), &BTreeMap::new())
             .expect("changed");
         assert_eq!(first[&0], 1.0);
-        // From 1 N to 3 N: the change grew from 1 N to 2 N.
+        assert_eq!(iteration.last_change(), 1.0);
+        // From 1 N to 3 N: the change grew from 1 N to 2 N, two thirds of the largest force.
         let second = iteration.next(&sample(3.0), &first).expect("changed");
         assert_eq!(second[&0], 3.0);
+        assert!((iteration.last_change() - 2.0 / 3.0).abs() < 1e-15);
+        // Settled: nothing left to tell the inner solve.
+        assert!(iteration.next(&sample(3.0), &second).is_none());
+        assert_eq!(iteration.last_change(), 0.0);
     }
 
     /// Tresca's threshold needs only the status: its forces do not keep the fixed point

@@ -36,6 +36,15 @@ const ROUND_OFF_FACTOR: f64 = 4.0;
 const FLOOR_STALLS: usize = 3;
 /// Halvings of a Newton increment while the residual grows.
 const MAX_BACKTRACKS: usize = 4;
+/// A pass that solves with thresholds that have not settled (Coulomb's lagged threshold,
+/// `ThresholdIteration`) stops at this fraction of their last relative change (not below the
+/// tolerance): the next thresholds are then within 1 % of the exact map's, and the passes
+/// spend no iterations on digits the next update discards (an inexact fixed point). The last
+/// pass, whose thresholds settle, goes on to the tolerance. Measured (release, 2026-12-01): the
+/// bundled block stack 1012 -> 928 Newton iterations, its worst step 45 -> 39; the 3D
+/// two-block stack 578 -> 528; 1e-1 saves less (960), as its passes end further from the
+/// next thresholds.
+const UNSETTLED_PASS_FRACTION: f64 = 1e-2;
 /// Self-contact in one pass, for the methods that hold each pair as a constraint: where a
 /// fold's two sides are both slaves of each other (node s on a facet holding node m, and m on
 /// a facet holding s), the two velocity constraints are (nearly) the same one, and their
@@ -502,6 +511,9 @@ where
             .map(|&(s, m, f)| ((s, m), f))
             .collect();
         let mut thresholds = ThresholdIteration::default();
+        // How far the thresholds the pass solves with are from settling (0: settled, or no
+        // Coulomb threshold in flux).
+        let mut thresholds_unsettled = 0.0;
         // The elastic slips of the return-map laws (world components).
         let friction_anchors: BTreeMap<ContactKey, SVector<f64, D>> = self
             .state
@@ -541,8 +553,11 @@ where
         let mut backtracks = 0;
         let mut line: Option<LineSearch> = None;
         // The globalized Newton (`Simulation::globalized_newton`): a line search on the step's
-        // energy, and the secant tangent for slips that turned. The friction forces'
-        // directions at the last accepted iterate (unit vectors) tell which turned.
+        // energy, and the secant tangent for slips that turned (`friction::return_map`), which
+        // implicit projection's Newton always takes (its return map on a lagged threshold;
+        // with the penalty methods' stiffer spring the plain Newton cut more steps with it:
+        // the book, contact resolution). The friction forces' directions at the last accepted
+        // iterate (unit vectors) tell which turned.
         let globalized = self.globalized_newton;
         let mut floor_stalls = 0;
         let mut slip_directions: BTreeMap<ContactKey, SVector<f64, D>> = BTreeMap::new();
@@ -764,7 +779,7 @@ where
             let stalled_from = previous_norm;
             previous_norm = norm;
             previous_merit = merit;
-            if globalized {
+            if frictional && (globalized || method.lagged_friction_threshold()) {
                 slip_directions = terms
                     .pairs
                     .iter()
@@ -788,7 +803,9 @@ where
             } else {
                 floor_stalls = 0;
             }
-            if rel <= tolerance || floor_stalls >= FLOOR_STALLS {
+            // Loosened while Coulomb's thresholds are still moving (`UNSETTLED_PASS_FRACTION`).
+            let pass_tolerance = tolerance.max(UNSETTLED_PASS_FRACTION * thresholds_unsettled);
+            if rel <= pass_tolerance || floor_stalls >= FLOOR_STALLS {
                 // Newton converged for the current outer variables.
                 let statuses: Vec<PairStatus> = terms.pairs.iter().map(PairStatus::from).collect();
                 let mut messages = Vec::new();
@@ -819,6 +836,9 @@ where
                         return Err(not_converged(iterations, rel, site, Stall::ContactCycle));
                     }
                 };
+                // A pass after another change (active set, multipliers) is solved to the
+                // tolerance: its outer update reads the solution's signs.
+                thresholds_unsettled = 0.0;
                 if done
                     && frictional
                     && (!method.friction_return_map() || method.lagged_friction_threshold())
@@ -835,6 +855,7 @@ where
                     };
                     let samples = self.threshold_samples(&terms.pairs, &x_gap, &closed);
                     if let Some(next) = thresholds.next(&samples, &friction_normals) {
+                        thresholds_unsettled = thresholds.last_change();
                         done = false;
                         friction_normals = next;
                         // A new threshold is a new problem: an active set seen under the old
@@ -842,7 +863,9 @@ where
                         vars.seen_sets.clear();
                     }
                 }
-                if done {
+                // Settled on an inexact pass: Newton goes on to the tolerance in this pass.
+                let to_tolerance = done && rel > tolerance && floor_stalls < FLOOR_STALLS;
+                if done && !to_tolerance {
                     return Ok(Solution {
                         v1,
                         residual,
@@ -855,18 +878,20 @@ where
                         kernel_damping_forces,
                     });
                 }
-                passes += 1;
-                previous_norm = f64::INFINITY;
-                previous_merit = f64::INFINITY;
-                predictions.clear();
-                floor_stalls = 0;
-                last_increment.clear();
-                line = None;
-                if passes > self.model.contact.max_passes {
-                    let site = self.residual_site(&residual, &terms.pairs, u0);
-                    return Err(not_converged(iterations, rel, site, Stall::ContactPasses));
+                if !to_tolerance {
+                    passes += 1;
+                    previous_norm = f64::INFINITY;
+                    previous_merit = f64::INFINITY;
+                    predictions.clear();
+                    floor_stalls = 0;
+                    last_increment.clear();
+                    line = None;
+                    if passes > self.model.contact.max_passes {
+                        let site = self.residual_site(&residual, &terms.pairs, u0);
+                        return Err(not_converged(iterations, rel, site, Stall::ContactPasses));
+                    }
+                    continue;
                 }
-                continue;
             }
             if iterations >= self.model.settings.max_iterations {
                 let site = self.residual_site(&residual, &terms.pairs, u0);

@@ -678,7 +678,11 @@ fn the_same_step_is_stable_with_alpha_in_the_window() {
 fn every_bundled_scene_passes_check() {
     let dir = tempdir();
     let mut n = 0;
-    for e in fs::read_dir(repo().join("fixtures/scenes")).unwrap() {
+    // The bundled scenes, and the measurement scenes the book's figures name.
+    let files = ["fixtures/scenes", "benches/scenes"]
+        .iter()
+        .flat_map(|d| fs::read_dir(repo().join(d)).unwrap());
+    for e in files {
         let path = e.unwrap().path();
         if path.extension().is_some_and(|x| x == "toml") {
             let o = run_in(dir.path(), &["check", path.to_str().unwrap()]);
