@@ -31,7 +31,12 @@ const EXPECTED: &[(&str, &[&str])] = &[
     // at step 582 of 600); at 3e9 none.
     ("ring_drop", &[]),
     ("rolling_ring", &[]),
-    ("thick_cylinder", &[]),
+    // Its scheme (alpha = 0.8, beta = 0.3) damps the massless tube's modes by design: 48.8 %
+    // of the bore's work is that damping, which `scheme_energy_drift` shows (2026-12-01).
+    (
+        "thick_cylinder",
+        &["the energy account does not close: 48.8% of the input"],
+    ),
     ("tilting_floor", &[]),
 ];
 
