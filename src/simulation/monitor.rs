@@ -246,6 +246,10 @@ pub struct RunMonitor {
     /// The time scheme's (alpha, beta), which damps where alpha + beta != 1.
     #[serde(default)]
     scheme: (f64, f64),
+    /// Whether a body's law is the hypoelastic one, whose stored energy is not the integral
+    /// of its stress power over large strain increments.
+    #[serde(default)]
+    hypoelastic: bool,
 }
 
 /// What [`RunMonitor`] measured the energy created on.
@@ -297,6 +301,11 @@ impl RunMonitor {
                 sim.model.settings.scheme.alpha,
                 sim.model.settings.scheme.beta,
             ),
+            hypoelastic: sim
+                .model
+                .bodies
+                .iter()
+                .any(|b| matches!(b.material, crate::material::Material::Hypoelastic(_))),
         }
     }
 
@@ -520,6 +529,12 @@ impl RunMonitor {
                     "the time scheme damps numerically (alpha = {alpha}, beta = {beta}: it \
                      conserves its energy only where beta = 1 - alpha)"
                 )
+            } else if self.hypoelastic {
+                "the hypoelastic law is the likely cause: its stored energy (1/2 sigma : C^-1 \
+                 sigma) is not the integral of its stress power over large strain increments \
+                 (one block thrown at 3 m/s on a floor leaves 2.5 to 14.5 % unbooked at steps \
+                 from 1e-3 to 1/60 s, without a trend; the linear-elastic block 1e-12)"
+                    .to_string()
             } else {
                 "a term whose energy is not booked (the cut steps' re-expression, a contact \
                  correction or a material update): a smaller time_step shows whether it \
@@ -790,6 +805,15 @@ mod tests {
             conserving[0].starts_with("the energy account does not close: 9.7% of the input")
                 && conserving[0].contains("a term whose energy is not booked"),
             "{conserving:?}"
+        );
+        let hypoelastic = RunMonitor {
+            hypoelastic: true,
+            ..monitor(-0.097, (0.75, 0.25))
+        }
+        .warnings();
+        assert!(
+            hypoelastic[0].contains("the hypoelastic law is the likely cause"),
+            "{hypoelastic:?}"
         );
         let damped = monitor(-0.488, (0.8, 0.3)).warnings();
         assert!(
