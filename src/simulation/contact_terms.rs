@@ -7,7 +7,7 @@ use std::collections::BTreeMap;
 
 use nalgebra::{SMatrix, SVector};
 
-use super::newton::edge_pair;
+use super::held_pairs::edge_pair;
 use super::observe::ContactRecord;
 use super::Simulation;
 use crate::contact::gap::{facet_gap, facet_gap_hessian, obstacle_gap_hessian};

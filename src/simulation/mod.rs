@@ -22,6 +22,7 @@ mod edit;
 mod energy_projection;
 mod fixed_timestep;
 mod handles;
+mod held_pairs;
 mod line_search;
 mod linear_solve;
 pub mod model;

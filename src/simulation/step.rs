@@ -8,7 +8,8 @@ use std::collections::BTreeSet;
 
 use nalgebra::SVector;
 
-use super::newton::{held_pairs, Solution, StepStart};
+use super::held_pairs::held_pairs;
+use super::newton::{Solution, StepStart};
 use super::observe::{NullRecorder, Recorder};
 use super::{end_positions, invalid, Simulation, StepReport};
 use crate::assembly;

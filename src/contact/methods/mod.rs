@@ -60,7 +60,7 @@ pub(crate) struct OuterVariables {
     /// penalty's closed branch, so that a contact the predictor lifts off is not dropped for
     /// an iteration; cleared after that direction.
     pub predicted: BTreeSet<ContactKey>,
-    /// The projections: the edge pairs (`newton::held_pairs`) held so far in this step. An
+    /// The projections: the edge pairs (`held_pairs::held_pairs`) held so far in this step. An
     /// active one stays held until the step ends (released by its tension like any other
     /// point), so that Newton's problem does not change from one iterate to the next as the
     /// edge criterion flips.
