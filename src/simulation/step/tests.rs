@@ -788,3 +788,54 @@ fn cut_steps_keep_a_pushed_block_on_the_plate_d3() {
     .unwrap();
     cut_steps_keep_a_pushed_block_on_the_plate::<3>(mesh);
 }
+
+/// Coulomb friction between two bodies under implicit projection (its return map on a lagged
+/// threshold, here 100 N on every pair), sticking and slipping: the tangential rows and columns
+/// of the assembled tangent against central differences of the contact forces. (The normal
+/// ones carry the velocity penalty, 1e4 diagonals, and are checked above.)
+#[test]
+fn implicit_projection_friction_tangent_between_two_bodies_matches_finite_differences() {
+    for (elastic_slip, speed) in [(0.0, 0.01), (0.0, 2.0), (2e-3, 0.01), (2e-3, 2.0)] {
+        let mut sim = two_blocks(ContactMethod::ImplicitProjection);
+        sim.model.contact.friction = FrictionLaw::Coulomb {
+            coefficient: 0.5,
+            regularization: 1e-3,
+        };
+        let h = 1e-3;
+        let n = sim.state.velocity.len();
+        let v1: Vec<f64> = (0..n).map(|i| speed * ((i as f64) * 0.7).sin()).collect();
+        let pairs = terms_at(&mut sim, &v1, h, &BTreeMap::new(), &BTreeMap::new()).pairs;
+        let normals: BTreeMap<_, _> = pairs.iter().map(|p| (p.key, 100.0)).collect();
+        let anchors: BTreeMap<_, _> = pairs
+            .iter()
+            .map(|p| (p.key, Vector2::new(elastic_slip, 0.0)))
+            .collect();
+        let terms = terms_at(&mut sim, &v1, h, &normals, &anchors);
+        let frictional = terms.pairs.iter().filter(|p| p.friction.norm() > 0.0);
+        let slipping = frictional
+            .clone()
+            .filter(|p| p.friction.norm() >= (1.0 - 1e-9) * 50.0)
+            .count();
+        assert!(frictional.count() > 0, "no friction in the configuration");
+        let (_, k, _) = forces_and_tangent(&mut sim, &v1, h, &normals, &anchors);
+        let diagonal = sim.system_diagonal().iter().copied().fold(0.0, f64::max);
+        let eps = 1e-7;
+        let mut worst: f64 = 0.0;
+        for j in (0..n).step_by(2) {
+            let (mut vp, mut vm) = (v1.clone(), v1.clone());
+            vp[j] += eps;
+            vm[j] -= eps;
+            let (fp, _, _) = forces_and_tangent(&mut sim, &vp, h, &normals, &anchors);
+            let (fm, _, _) = forces_and_tangent(&mut sim, &vm, h, &normals, &anchors);
+            for i in (0..n).step_by(2) {
+                let fd = -(fp[i] - fm[i]) / (2.0 * eps);
+                worst = worst.max((fd - k[(i, j)]).abs());
+            }
+        }
+        eprintln!(
+            "elastic slip {elastic_slip}, speed {speed}: {slipping} slipping, tangential error \
+             {worst:.2e} against the largest diagonal {diagonal:.2e}"
+        );
+        assert!(worst <= 1e-4 * diagonal, "tangent error {worst:e}");
+    }
+}
