@@ -243,9 +243,10 @@ pub struct RunMonitor {
     /// ([`RunMonitor::scheme_energy_drift`]), signed: negative where energy left unbooked.
     #[serde(default)]
     scheme_account: f64,
-    /// The time scheme's (alpha, beta), which damps where alpha + beta != 1.
+    /// The time scheme's (alpha, beta), which damps where alpha + beta != 1 (unknown in
+    /// checkpoints written before it was kept).
     #[serde(default)]
-    scheme: (f64, f64),
+    scheme: Option<(f64, f64)>,
     /// Whether a body's law is the hypoelastic one, whose stored energy is not the integral
     /// of its stress power over large strain increments.
     #[serde(default)]
@@ -297,10 +298,10 @@ impl RunMonitor {
             compression_peak: 0.0,
             gap_tolerance: sim.model.contact.gap_tolerance,
             scheme_account: 0.0,
-            scheme: (
+            scheme: Some((
                 sim.model.settings.scheme.alpha,
                 sim.model.settings.scheme.beta,
-            ),
+            )),
             hypoelastic: sim
                 .model
                 .bodies
@@ -523,8 +524,9 @@ impl RunMonitor {
             ));
         }
         if -self.scheme_account > ENERGY_LOSS_WARNING {
-            let (alpha, beta) = self.scheme;
-            let cause = if (alpha + beta - 1.0).abs() > 1e-12 {
+            let cause = if let Some((alpha, beta)) =
+                self.scheme.filter(|(a, b)| (a + b - 1.0).abs() > 1e-12)
+            {
                 format!(
                     "the time scheme damps numerically (alpha = {alpha}, beta = {beta}: it \
                      conserves its energy only where beta = 1 - alpha)"
@@ -789,7 +791,7 @@ mod tests {
     fn an_unbooked_loss_warns_with_its_cause() {
         let monitor = |account: f64, scheme: (f64, f64)| RunMonitor {
             scheme_account: account,
-            scheme,
+            scheme: Some(scheme),
             ..RunMonitor::default()
         };
         for quiet in [-0.04, 0.2] {
