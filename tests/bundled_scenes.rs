@@ -250,6 +250,7 @@ fn block_stack() {
     let weight = 3.0 * 1000.0 * 1e-3 * 9.81;
     let (mut deepest, mut floor_force, mut samples, mut cuts) = (0.0f64, 0.0, 0, 0);
     let mut most_iterations = (0, 0);
+    let mut factorisations = 0;
     while sim.state().time < 1.0 - 1e-9 {
         let r = sim
             .step()
@@ -257,6 +258,7 @@ fn block_stack() {
         assert_eq!(sim.fell_through(), None, "t = {}", r.time);
         deepest = deepest.max(r.max_penetration);
         cuts += r.cuts;
+        factorisations += r.factorisations;
         most_iterations = most_iterations.max((r.iterations, r.step));
         if r.time > 0.8 {
             floor_force += r.contact_forces[0][2];
@@ -268,8 +270,12 @@ fn block_stack() {
     let error = common::energy_error(&sim);
     eprintln!(
         "block stack: top block moved {moved:?} m, floor force {floor_force:.3} N of \
-         {weight:.3}, deepest {deepest:.2e} m, account {error:.2e}, {cuts} cut(s)"
+         {weight:.3}, deepest {deepest:.2e} m, account {error:.2e}, {cuts} cut(s), \
+         {factorisations} factorisations"
     );
+    // 426 in the 60 steps; 527 while the end-of-step projection moved its round-off depths
+    // out (2026-12-01; the performance chapter).
+    assert!(factorisations <= 470, "{factorisations} factorisations");
     assert_eq!(cuts, 0, "steps cut");
     assert!((floor_force / weight - 1.0).abs() < 1e-2, "{floor_force} N");
     assert!(
