@@ -26,6 +26,10 @@ use crate::time::SpaceTimeScheme;
 /// Deepest step cut: a step is halved at most this many times.
 const MAX_CUTS: usize = 4;
 
+/// Most passes of implicit projection's end-of-step correction in the step's metric (each
+/// after detecting again; a pass that moves nothing ends them).
+const PROJECTION_PASSES: usize = 4;
+
 impl<const D: usize> Simulation<D>
 where
     Dim<D>: SpatialDim<D>,
@@ -510,10 +514,10 @@ where
             {
                 let detector = self.caches.detector.as_ref().expect("checked");
                 let facets = detector.surface().facets().to_vec();
-                // Twice: the first correction can bring neighbours of the contact
-                // patch into the master.
+                // Again while a correction moved something: each can bring neighbours of
+                // the contact patch into the master (at most `PROJECTION_PASSES`).
                 let mut pairs = pairs;
-                for pass in 0..2 {
+                for pass in 0..PROJECTION_PASSES {
                     let x_end = end_positions(&self.reference, &gap_u1, &v1, &vec![0.0; ndof], 0.0);
                     if pass > 0 {
                         pairs = self.end_of_step_pairs(
@@ -526,6 +530,9 @@ where
                     }
                     let du =
                         self.weighted_projection(&pairs, &vars.active, &facets, &x_end, h, step)?;
+                    if du.iter().all(|&d| d == 0.0) {
+                        break;
+                    }
                     for (g, d) in gap_u1.iter_mut().zip(&du) {
                         *g += d;
                     }
