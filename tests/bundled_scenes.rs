@@ -273,7 +273,7 @@ fn block_stack() {
          {weight:.3}, deepest {deepest:.2e} m, account {error:.2e}, {cuts} cut(s), \
          {factorisations} factorisations"
     );
-    // 426 in the 60 steps; 527 while the end-of-step projection moved its round-off depths
+    // 427 in the 60 steps; 527 while the end-of-step projection moved its round-off depths
     // out (2026-12-01; the performance chapter).
     assert!(factorisations <= 470, "{factorisations} factorisations");
     assert_eq!(cuts, 0, "steps cut");
