@@ -218,7 +218,12 @@ where
         ContactMethod::ImplicitProjection,
         GapDisplacement::Configuration,
     );
-    assert!(error < 2e-2, "energy error {error}");
+    // The energies' account, which the scheme conserves only to O(h): it swings by about 2 %
+    // either way while the blocks ring. The frictionless 2D stack peaked at -1.66e-2 at
+    // t = 0.133 s with one pass and +2.02e-2 at t = 0.157 s once the master nodes were moved
+    // out (2026-12-02); the account on the scheme's own energy closes to 2e-9 in both
+    // (`scheme_energy_drift` of the same stack as a scene file, `softway run`).
+    assert!(error < 2.5e-2, "energy error {error}");
     assert!(sideways < 1e-8, "sideways momentum created: {sideways:e}");
     assert!(
         settled < settled_below,
@@ -522,7 +527,8 @@ mod d2 {
 
     #[test]
     fn a_stack_under_implicit_projection() {
-        super::a_stack_under_implicit_projection::<2>(1e-6, 1e-3);
+        // 9.96e-6 m since the master side's nodes are moved out too (2.9e-4 m before).
+        super::a_stack_under_implicit_projection::<2>(1e-6, 5e-5);
     }
     #[test]
     fn a_stack_under_the_soft_way() {
@@ -670,8 +676,10 @@ mod d3 {
         // and the end-of-step projection that moved them out pushed a top-block facet 2 mm into
         // an unheld neighbour (scratch prints). Chaotic: before the merit the same scene at
         // h = 1.05 ms showed 2.16e-3 m, after it 6.7e-4 m (`softway run` of the scene, both
-        // builds). The open test asks for none.
-        super::a_stack_under_implicit_projection::<3>(3e-3, 3e-3);
+        // builds). The open test asks for none. Since the end-of-step projection moves the
+        // master side's nodes deeper than `master_tolerance` out too (2026-12-02): 2.49e-5 m
+        // (4.9e-6 m in the last 50 ms), the account at most 1.54e-2, 4831 iterations, 2 cuts.
+        super::a_stack_under_implicit_projection::<3>(2e-5, 2e-4);
     }
     /// Measured: largest penetration 1.04e-3 m, energy error 3.7e-3 at the end (before the
     /// penalty's loss was booked and the account checked throughout).
@@ -775,12 +783,12 @@ mod open {
     use softway::contact::{ContactMethod, GapDisplacement};
 
     #[test]
-    #[ignore = "penetration: 5.3e-4 m at worst, 4.3e-4 m after 0.45 s (2026-12-02; 5.7e-4 m \
-                on 12-01, 2.28e-3 m earlier that day), a master node between two held slaves sinking into \
-                the slave facet under it, and released nodes that the stored configuration \
-                puts inside a tumbling block's corner (one pass; book, contact chapter, \
-                Limits); it runs to the end and the account \
-                holds (d3::a_stack_under_implicit_projection). Until an active edge pair stayed \
+    #[ignore = "penetration: 2.49e-5 m at worst, 4.9e-6 m after 0.45 s since the end-of-step \
+                projection moves the master side's nodes deeper than master_tolerance = 1e-5 m \
+                out too (2026-12-02; 5.3e-4 m and 4.3e-4 m before, 2.28e-3 m on 12-01): a master \
+                node between two held slaves sinks into the slave facet under it while the blocks \
+                ring, and Newton does not hold it (book, contact chapter, Limits); it runs to the \
+                end and the account holds (d3::a_stack_under_implicit_projection). Until an active edge pair stayed \
                 held for the rest of its step it stopped at step 398: a top-block node in 5 kN \
                 of tension dropped by the edge rule and taken again at the next iterate, for \
                 50 iterations"]

@@ -16,8 +16,8 @@ use serde::{Deserialize, Serialize};
 pub use detection::{ContactPair, ContactSurface, DetectionOptions, Detector, Feature, Master};
 pub use obstacle::{MotionSegment, Obstacle, ObstacleShape};
 pub use resolution::{
-    ContactMethod, ContactSettings, FrictionLaw, GapDisplacement, PenaltyForce, ProjectionEnergy,
-    ProjectionMetric, UzawaPenalty,
+    ContactMethod, ContactSettings, FrictionLaw, GapDisplacement, MasterNodes, PenaltyForce,
+    ProjectionEnergy, ProjectionMetric, UzawaPenalty, DEFAULT_MASTER_TOLERANCE,
 };
 
 /// The master side of a contact, as remembered between iterations and steps.

@@ -16,8 +16,8 @@ use crate::assembly;
 use crate::contact::methods::projection::{project, Applied, BodyImpulse, ProjectionContext};
 use crate::contact::methods::{self, implicit_projection, EndProjection, Method};
 use crate::contact::{
-    ContactKey, ContactMethod, ContactPair, GapDisplacement, Master, MasterId, ProjectionEnergy,
-    ProjectionMetric,
+    ContactKey, ContactMethod, ContactPair, GapDisplacement, Master, MasterId, MasterNodes,
+    ProjectionEnergy, ProjectionMetric,
 };
 use crate::dim::{Dim, SpatialDim};
 use crate::error::{Error, Result};
@@ -388,7 +388,7 @@ where
             &start.obstacles_t1,
         );
         let mut pairs = detector.pairs(x_end, &start.obstacles_t1);
-        held_pairs(
+        let unheld = held_pairs(
             method,
             &mut pairs,
             detector,
@@ -397,6 +397,12 @@ where
             edge_held,
             active,
         );
+        if self.model.contact.master_nodes == MasterNodes::Projected {
+            // The master side's nodes deeper than the tolerance: moved out (inequality rows of
+            // the projection), never held.
+            let depth = self.model.contact.master_tolerance;
+            pairs.extend(unheld.into_iter().filter(|p| p.gap < -depth));
+        }
         pairs
     }
 

@@ -246,6 +246,20 @@ fn out_of_range_numbers() {
             "\"growing\" or \"fixed\"",
         ),
         (
+            "master_nodes_unknown",
+            "contact.master_nodes",
+            "master_nodes = \"held\"",
+            "\"held\"",
+            "\"projected\" or \"free\"",
+        ),
+        (
+            "master_tolerance_negative",
+            "contact.master_tolerance",
+            "master_tolerance = -1.0e-5",
+            "-0.00001",
+            ">= 0 [m]",
+        ),
+        (
             "contact_penalty_negative",
             "contact.penalty",
             "penalty = -1.0e9",

@@ -12,8 +12,8 @@ use super::schema::{
 use super::{LoadedScene, OutputOptions, Probe, Scene};
 use crate::contact::resolution::DEFAULT_REGULARIZATION;
 use crate::contact::{
-    ContactMethod, ContactSettings, FrictionLaw, GapDisplacement, PenaltyForce, ProjectionEnergy,
-    ProjectionMetric, UzawaPenalty,
+    ContactMethod, ContactSettings, FrictionLaw, GapDisplacement, MasterNodes, PenaltyForce,
+    ProjectionEnergy, ProjectionMetric, UzawaPenalty,
 };
 use crate::dim::{Dim, Kinematics, SpatialDim};
 use crate::error::{Error, Result};
@@ -349,6 +349,7 @@ impl LoadedScene {
             ));
         }
         self.positive("contact.gap_tolerance", c.gap_tolerance, "m")?;
+        self.non_negative("contact.master_tolerance", c.master_tolerance, "m")?;
         let friction = self.friction("contact.friction", &c.friction)?;
         let any_friction = friction != FrictionLaw::Frictionless
             || self.file.obstacles.iter().any(|o| {
@@ -404,6 +405,14 @@ impl LoadedScene {
                 ("fixed", UzawaPenalty::Fixed),
             ],
         )?;
+        let master_nodes = self.keyword(
+            "contact.master_nodes",
+            c.master_nodes.as_deref(),
+            &[
+                ("projected", MasterNodes::Projected),
+                ("free", MasterNodes::Free),
+            ],
+        )?;
         if penalty_force == PenaltyForce::Secant
             && (method != ContactMethod::SoftWay || gap_displacement != GapDisplacement::Trapezoid)
         {
@@ -429,6 +438,8 @@ impl LoadedScene {
             projection_energy,
             penalty_force,
             uzawa_penalty,
+            master_nodes,
+            master_tolerance: c.master_tolerance,
             ..ContactSettings::default()
         })
     }

@@ -163,6 +163,16 @@ pub struct ContactSection {
     /// The augmented Lagrangian's penalty through Uzawa: "growing" | "fixed".
     #[serde(default)]
     pub uzawa_penalty: Option<String>,
+    /// Implicit projection's master side between deformable surfaces: "projected" | "free".
+    #[serde(default)]
+    pub master_nodes: Option<String>,
+    /// The depth (m) from which "projected" moves a master node out.
+    #[serde(default = "default_master_tolerance")]
+    pub master_tolerance: f64,
+}
+
+fn default_master_tolerance() -> f64 {
+    crate::contact::DEFAULT_MASTER_TOLERANCE
 }
 
 fn default_method() -> String {
@@ -182,6 +192,8 @@ impl Default for ContactSection {
             projection_energy: None,
             penalty_force: None,
             uzawa_penalty: None,
+            master_nodes: None,
+            master_tolerance: default_master_tolerance(),
         }
     }
 }
