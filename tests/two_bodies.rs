@@ -522,7 +522,8 @@ mod d2 {
     }
     #[test]
     fn a_tresca_stack_under_implicit_projection() {
-        super::tresca_stack::<2>(ContactMethod::ImplicitProjection, 2e-3);
+        // 1.78e-5 m since the master side's nodes are moved out too (2026-12-02).
+        super::tresca_stack::<2>(ContactMethod::ImplicitProjection, 2e-4);
     }
 
     #[test]
@@ -579,7 +580,8 @@ mod d2 {
     /// m in the last 50 ms.
     #[test]
     fn a_coulomb_stack_under_implicit_projection() {
-        super::coulomb_stack::<2>(ContactMethod::ImplicitProjection, 1e-3);
+        // 3.77e-5 m since the master side's nodes are moved out too (3.4e-4 m before).
+        super::coulomb_stack::<2>(ContactMethod::ImplicitProjection, 2e-4);
     }
 }
 
@@ -655,7 +657,9 @@ mod d3 {
         ignore = "slow without threads: runs with the default features; nothing it reaches depends on a feature but the threaded assembly, which determinism.rs checks"
     )]
     fn a_coulomb_stack_under_implicit_projection() {
-        super::coulomb_stack::<3>(ContactMethod::ImplicitProjection, 1e-3);
+        // 5.02e-5 m (7.1e-6 m after 0.45 s) since the master side's nodes are moved out too,
+        // 7663 Newton iterations, 3 cut steps (2026-12-02; 3.45e-4 m, 6926 and 2 before).
+        super::coulomb_stack::<3>(ContactMethod::ImplicitProjection, 2e-4);
     }
     /// It stopped at step 398 until an active edge pair stayed held for the rest of its step
     /// (`held_pairs`). Measured 2026-11-29: the account at most 1.77e-2 after the landing,
