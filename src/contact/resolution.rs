@@ -154,7 +154,9 @@ pub const DEFAULT_MASTER_TOLERANCE: f64 = 1e-5;
 pub enum MasterNodes {
     /// The end-of-step projection moves those deeper than
     /// [`ContactSettings::master_tolerance`] out too: their pairs are inequality rows of the
-    /// same correction that puts the held points on their masters. Not within a fold (self-
+    /// same correction that puts the held points on their masters (the step metric,
+    /// [`ProjectionMetric::Step`]; the paper's node projection moves active points only). Not
+    /// within a fold (self-
     /// contact): moved out there, the folding strip's tip created 0.49 of the reference
     /// energy (4.5e-2 with the default tolerance).
     #[default]

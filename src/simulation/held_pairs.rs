@@ -98,7 +98,7 @@ fn holding_slaves<const D: usize>(
 /// were detected at; `offsets`: the first node of each body.
 ///
 /// Returns the pairs between two deformable bodies that are not held and penetrate: the
-/// master side's nodes inside the other body, which Newton damps and the end-of-step
+/// master side's nodes inside the other body, which Newton does not hold and the end-of-step
 /// projection moves out ([`crate::contact::MasterNodes::Projected`]). Within a fold the
 /// dropped side is left alone: moved out at the end of the step, the folding strip's tip
 /// created 0.49 of the reference energy, 4.5e-2 with `master_tolerance` (2026-12-02).

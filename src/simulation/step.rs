@@ -371,7 +371,8 @@ where
 
     /// The pairs the end-of-step projection moves, at the end positions `x_end`: detected,
     /// then held as Newton held them (`held_pairs`, with the step's edge pairs `edge_held` and
-    /// its active set `active`).
+    /// its active set `active`), and the master side's nodes deeper than `master_tolerance`
+    /// (`MasterNodes::Projected`).
     fn end_of_step_pairs(
         &mut self,
         start: &StepStart<D>,
