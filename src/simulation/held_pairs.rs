@@ -96,12 +96,6 @@ fn holding_slaves<const D: usize>(
 /// stack of three soft blocks at step 398: a top-block node in 5 kN of tension, in and out
 /// for 50 iterations, in every cut of the step; the run stopped). `x`: the positions the pairs
 /// were detected at; `offsets`: the first node of each body.
-///
-/// Returns the pairs between two deformable bodies that are not held and penetrate: the
-/// master side's nodes inside the other body, which Newton does not hold and the end-of-step
-/// projection moves out ([`crate::contact::MasterNodes::Projected`]). Within a fold the
-/// dropped side is left alone: moved out at the end of the step, the folding strip's tip
-/// created 0.49 of the reference energy, 4.5e-2 with `master_tolerance` (2026-12-02).
 pub(super) fn held_pairs<const D: usize>(
     method: &dyn Method,
     pairs: &mut Vec<ContactPair<D>>,
@@ -110,13 +104,11 @@ pub(super) fn held_pairs<const D: usize>(
     offsets: &[usize],
     edge_held: &mut BTreeSet<ContactKey>,
     active: &BTreeSet<ContactKey>,
-) -> Vec<ContactPair<D>>
-where
+) where
     Dim<D>: SpatialDim<D>,
 {
-    let mut unheld = Vec::new();
     if method.symmetric_pairs() || !method.in_newton() {
-        return unheld;
+        return;
     }
     let surface = detector.surface();
     let facet_body = surface.facet_body();
@@ -137,16 +129,11 @@ where
             if beyond {
                 edge_held.insert(key);
             }
-            let kept = beyond || (active.contains(&key) && edge_held.contains(&key));
-            if !kept && p.gap < 0.0 {
-                unheld.push(*p);
-            }
-            kept
+            beyond || (active.contains(&key) && edge_held.contains(&key))
         }
         Master::Obstacle(_) => true,
     });
     one_pass_self_contact(pairs, surface.facets(), facet_body, offsets);
-    unheld
 }
 
 /// Whether a pair between deformable bodies is a projection's edge pair (`held_pairs`): its

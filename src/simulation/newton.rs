@@ -447,8 +447,7 @@ where
                 );
                 candidates = detector.candidates().len();
                 let mut pairs = detector.pairs(&x_gap, &start.obstacles_t1);
-                // The master side's unheld nodes are the end-of-step projection's, not Newton's.
-                let _unheld = held_pairs(
+                held_pairs(
                     method,
                     &mut pairs,
                     detector,
