@@ -276,7 +276,8 @@ fn block_stack() {
          {factorisations} factorisations"
     );
     // 427 in the 60 steps; 527 while the end-of-step projection moved its round-off depths
-    // out (2026-12-01; the performance chapter); 449 since it moves master nodes too.
+    // out (2026-12-01; the performance chapter); 449 since it moves master nodes too, 437
+    // since it watches the points it could press in (2026-12-02).
     assert!(factorisations <= 470, "{factorisations} factorisations");
     assert_eq!(cuts, 0, "steps cut");
     assert!((floor_force / weight - 1.0).abs() < 1e-2, "{floor_force} N");

@@ -126,8 +126,9 @@ pub struct ContactSettings {
     /// of the slave side's facets.
     #[serde(default)]
     pub master_nodes: MasterNodes,
-    /// Implicit projection, [`MasterNodes::Projected`]: the depth (m) below which a master
-    /// node is left where Newton put it.
+    /// Implicit projection, [`MasterNodes::Projected`]: the depth (m) a master node may end
+    /// at: shallower, it is left where Newton put it (and kept from ending deeper); deeper,
+    /// it is moved out.
     #[serde(default = "default_master_tolerance")]
     pub master_tolerance: f64,
 }
@@ -153,7 +154,8 @@ pub const DEFAULT_MASTER_TOLERANCE: f64 = 1e-5;
 #[serde(rename_all = "snake_case")]
 pub enum MasterNodes {
     /// The end-of-step projection moves those deeper than
-    /// [`ContactSettings::master_tolerance`] out too: their pairs are inequality rows of the
+    /// [`ContactSettings::master_tolerance`] out too, and keeps the others from ending deeper
+    /// than it: their pairs are inequality rows of the
     /// same correction that puts the held points on their masters (the step metric,
     /// [`ProjectionMetric::Step`]; the paper's node projection moves active points only). Not
     /// within a fold (self-

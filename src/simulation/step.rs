@@ -371,8 +371,10 @@ where
 
     /// The pairs the end-of-step projection moves, at the end positions `x_end`: detected,
     /// then held as Newton held them (`held_pairs`, with the step's edge pairs `edge_held` and
-    /// its active set `active`), and the master side's nodes deeper than `master_tolerance`
-    /// (`MasterNodes::Projected`).
+    /// its active set `active`), then the master side's pairs between two bodies
+    /// (`MasterNodes::Projected`), at any gap: those deeper than `master_tolerance` are moved
+    /// out, the others are kept from going deeper than it. Returns the pairs and where the
+    /// master side's begin.
     fn end_of_step_pairs(
         &mut self,
         start: &StepStart<D>,
@@ -380,7 +382,7 @@ where
         method: &dyn Method,
         edge_held: &mut BTreeSet<ContactKey>,
         active: &BTreeSet<ContactKey>,
-    ) -> Vec<ContactPair<D>> {
+    ) -> (Vec<ContactPair<D>>, usize) {
         let detector = self.caches.detector.as_mut().expect("contact detection");
         detector.update_candidates_posed(
             &start.x0,
@@ -399,28 +401,25 @@ where
             edge_held,
             active,
         );
+        let master_side = pairs.len();
         if self.model.contact.master_nodes == MasterNodes::Projected {
             // The pairs between two bodies that `held_pairs` dropped (it keeps the detected
-            // order) and that are deeper than the tolerance: the master side's nodes, moved out
-            // (inequality rows of the projection), never held. Within a fold the dropped side
-            // is left alone: moved out, the folding strip's tip created 0.49 of the reference
+            // order): the master side's nodes, never held. Within a fold the dropped side is
+            // left alone: moved out, the folding strip's tip created 0.49 of the reference
             // energy, 4.5e-2 with the default tolerance (2026-12-02).
             let facet_body = detector.surface().facet_body();
-            let depth = self.model.contact.master_tolerance;
             let mut held = pairs.iter().peekable();
             let unheld: Vec<ContactPair<D>> = detected
                 .into_iter()
                 .filter(|p| held.next_if_eq(&p).is_none())
                 .filter(|p| match p.master {
-                    Master::Facet(f) => {
-                        p.gap < -depth && facet_body[f] != body_of(&self.node_offsets, p.slave)
-                    }
+                    Master::Facet(f) => facet_body[f] != body_of(&self.node_offsets, p.slave),
                     Master::Obstacle(_) => false,
                 })
                 .collect();
             pairs.extend(unheld);
         }
-        pairs
+        (pairs, master_side)
     }
 
     /// One step without cutting. `count_step` is false for the first pieces of a cut step.
@@ -526,7 +525,7 @@ where
             let x_end = end_positions(&self.reference, &gap_u1, &v1, &vec![0.0; ndof], 0.0);
             // The edge pairs Newton held, and any the end positions put beyond an edge.
             let mut edge_held = vars.edge_held.clone();
-            let pairs =
+            let (pairs, master_side) =
                 self.end_of_step_pairs(&start, &x_end, method, &mut edge_held, &vars.active);
             let (u_before, v_before) = (u1.clone(), v1.clone());
             let mut impulses = vec![vec![0.0; D]; self.model.obstacles.len()];
@@ -539,11 +538,11 @@ where
                 let facets = detector.surface().facets().to_vec();
                 // Again while a correction moved something: each can bring neighbours of
                 // the contact patch into the master (at most `PROJECTION_PASSES`).
-                let mut pairs = pairs;
+                let (mut pairs, mut master_side) = (pairs, master_side);
                 for pass in 0..PROJECTION_PASSES {
                     let x_end = end_positions(&self.reference, &gap_u1, &v1, &vec![0.0; ndof], 0.0);
                     if pass > 0 {
-                        pairs = self.end_of_step_pairs(
+                        (pairs, master_side) = self.end_of_step_pairs(
                             &start,
                             &x_end,
                             method,
@@ -551,8 +550,15 @@ where
                             &vars.active,
                         );
                     }
-                    let du =
-                        self.weighted_projection(&pairs, &vars.active, &facets, &x_end, h, step)?;
+                    let du = self.weighted_projection(
+                        &pairs,
+                        master_side,
+                        &vars.active,
+                        &facets,
+                        &x_end,
+                        h,
+                        step,
+                    )?;
                     if du.iter().all(|&d| d == 0.0) {
                         break;
                     }
@@ -575,6 +581,15 @@ where
                     obstacle_velocity: &velocity,
                     time_step: h,
                 };
+                // The master side's pairs within the tolerance are for the step metric's
+                // rows only.
+                let depth = self.model.contact.master_tolerance;
+                let pairs: Vec<ContactPair<D>> = pairs
+                    .into_iter()
+                    .enumerate()
+                    .filter(|(i, p)| *i < master_side || p.gap < -depth)
+                    .map(|(_, p)| p)
+                    .collect();
                 project(
                     &context,
                     &pairs,
