@@ -395,7 +395,9 @@ where
             "stacked {stacked}: {created} J created of {reference} J"
         );
         assert!(e.kinetic <= 1e-5 * reference, "still moving: {e:?}");
-        assert!((0.0..1e-9).contains(&lowest), "lowest point {lowest} m");
+        // Implicit projection's end-of-step correction leaves depths of round-off, below
+        // 1e-3 gap_tolerance = 1e-12 m (measured 4.1e-13 and 5.6e-13 m, 2026-12-02).
+        assert!((-1e-12..1e-9).contains(&lowest), "lowest point {lowest} m");
     }
 }
 

@@ -45,6 +45,13 @@ pub(super) type StoppedPair<const D: usize> = (ContactKey, SVector<f64, D>, SVec
 /// rows.
 const PENALTY: f64 = 1e4;
 
+/// Depths below this fraction of `gap_tolerance` are round-off the end-of-step correction
+/// leaves as they are. Not the whole tolerance: Newton leaves held points 1e-12 to 1e-9 m deep,
+/// and leaving those (a whole `gap_tolerance`) stored 4.8e-10 m inside the floor on a landing
+/// block and changed the drum's friction-carried block turning rate from 0.13 % to 1.3 % off
+/// the drum's (2026-12-02).
+const ROUND_OFF_DEPTH: f64 = 1e-3;
+
 /// The most solves of the end-of-step projection's active set on its penetrating points.
 const MOVED_OUT_ROUNDS: usize = 6;
 
@@ -152,7 +159,13 @@ where
             holds.push(held);
             watches.push(watched);
         }
-        if rows.iter().all(|row| row.1 >= 0.0) {
+        // Nothing deeper than round-off: no correction. A correction leaves its points 1e-13
+        // to 1e-21 m deep, which the next pass corrected again, two solves and often a
+        // factorisation for nothing (257 of the bundled block stack's 430 corrections).
+        if rows
+            .iter()
+            .all(|row| row.1 >= -ROUND_OFF_DEPTH * gap_tolerance)
+        {
             return Ok(vec![0.0; ndof]);
         }
         // The rigid part first: it strains nothing.
