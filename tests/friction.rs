@@ -16,7 +16,7 @@ use softway::contact::{
 };
 use softway::dim::{Dim, SpatialDim};
 use softway::prelude::*;
-use softway::simulation::RayleighDamping;
+use softway::simulation::{RayleighDamping, RunMonitor};
 
 const G: f64 = 9.81;
 
@@ -140,35 +140,35 @@ fn walks_near_the_cone_when_lightly_damped() {
 mod hops_near_the_cone {
     use super::*;
     #[test]
-    #[ignore = "no contact in 16.2 % of the steps (19.9 % before the tangential spring's cap): the soft way's block hops (walk 10.9 mm against 4.4)"]
+    #[ignore = "no contact in 17.0 % of the steps (2026-12-03, Newton solving slip's coupling; 16.2 % without, 19.9 % before the tangential spring's cap): the soft way's block hops (walk 10.9 mm against 4.4)"]
     fn d2_soft_way() {
         hops_like_the_converged_block::<2>(ContactMethod::SoftWay);
     }
     #[test]
-    #[ignore = "no contact in 16.4 % of the steps (18.9 % before the tangential spring's cap): the soft way's block hops (walk 14 mm)"]
+    #[ignore = "no contact in 17.4 % of the steps (2026-12-03, Newton solving slip's coupling; 16.4 % without, 18.9 % before the tangential spring's cap): the soft way's block hops (walk 14 mm)"]
     fn d3_soft_way() {
         hops_like_the_converged_block::<3>(ContactMethod::SoftWay);
     }
     #[test]
-    #[ignore = "no contact in 18.6 % of the steps (18.5 % before the tangential spring's cap, 16.2 % before cut steps kept the scheme's energy). Its 1.2 % before came from cut steps and the \
+    #[ignore = "no contact in 17.4 % of the steps (2026-12-03, Newton solving slip's coupling; 18.6 % without, 18.5 % before the tangential spring's cap, 16.2 % before cut steps kept the scheme's energy). Its 1.2 % before came from cut steps and the \
                 tolerance: with that Newton, a tolerance of 3e-9 gave 11.9 % and 1e-10 35.6 %"]
     fn d2_augmented_lagrangian() {
         hops_like_the_converged_block::<2>(ContactMethod::AugmentedLagrangian);
     }
     #[test]
-    #[ignore = "no contact in 18.4 % of the steps (16.5 % before the tangential spring's cap), 13.1 % before cut steps kept the scheme's energy (30 % with the paper's fixed zeta, walk 38 mm)"]
+    #[ignore = "no contact in 16.6 % of the steps (2026-12-03, Newton solving slip's coupling; 18.4 % without, 16.5 % before the tangential spring's cap), 13.1 % before cut steps kept the scheme's energy (30 % with the paper's fixed zeta, walk 38 mm)"]
     fn d3_augmented_lagrangian() {
         hops_like_the_converged_block::<3>(ContactMethod::AugmentedLagrangian);
     }
     #[test]
-    #[ignore = "no contact in 10.9 % of the steps (10.6 % before the end-of-step projection held points within the gap tolerance, 2026-12-02; 14.3 % with a tangential spring of 100 diagonals per step, 13.1 % before the active set was carried from step to step). Its 1.6 % before came from steps whose \
+    #[ignore = "no contact in 10.8 % of the steps (2026-12-03; 10.9 % read earlier, 10.6 % before the end-of-step projection held points within the gap tolerance, 2026-12-02; 14.3 % with a tangential spring of 100 diagonals per step, 13.1 % before the active set was carried from step to step). Its 1.6 % before came from steps whose \
                 Newton failed (12, 115, 120, 138, ...) and were cut in halves; the line search \
                 now solves them at full size"]
     fn d2_implicit_projection() {
         hops_like_the_converged_block::<2>(ContactMethod::ImplicitProjection);
     }
     #[test]
-    #[ignore = "no contact in 9.1 % of the steps (8.4 % before the end-of-step projection held points within the gap tolerance, 2026-12-02; 11.5 % with a tangential spring of 100 diagonals per step), 12.9 % before cut steps kept the scheme's energy (it runs to the end since a stalled Newton is \
+    #[ignore = "no contact in 7.8 % of the steps (2026-12-03; 9.1 % read earlier, 8.4 % before the end-of-step projection held points within the gap tolerance, 2026-12-02; 11.5 % with a tangential spring of 100 diagonals per step), 12.9 % before cut steps kept the scheme's energy (it runs to the end since a stalled Newton is \
                 retried with the line search; it stopped at step 295)"]
     fn d3_implicit_projection() {
         hops_like_the_converged_block::<3>(ContactMethod::ImplicitProjection);
@@ -420,6 +420,18 @@ where
 {
     let (theta, mu) = (30f64.to_radians(), 0.3);
     let mut sim = slope::<D>(mu, method, RayleighDamping::NONE, 30.0, 1e-3);
+    let mut monitor = RunMonitor::new(&sim);
+    let mut run_to = |sim: &mut Simulation<D>, time: f64| {
+        let mut most = 0;
+        while sim.state().time < time - 1e-9 {
+            let r = sim
+                .step()
+                .unwrap_or_else(|e| panic!("t = {}: {e}", sim.state().time));
+            monitor.step(sim, &r).unwrap();
+            most = most.max(r.iterations);
+        }
+        most
+    };
     run_to(&mut sim, 0.1);
     // The acceleration: a least-squares line through the mean velocity of every step from
     // 0.1 s to 0.5 s (the block's elastic vibration averages out).
@@ -443,16 +455,28 @@ where
     let error = (a - exact) / exact;
     eprintln!(
         "{D}D {method:?} slide: a = {a:.5} m/s^2, expected {exact:.5} ({:.3} %), iterations per step <= \
-         {most}, dissipated {:.4e} J, energy error {:.2e}",
+         {most}, dissipated {:.4e} J, energy error {:.2e}, scheme's account {:.2e}",
         100.0 * error,
         sim.energies().dissipated,
-        energy_error(&sim)
+        energy_error(&sim),
+        monitor.scheme_energy_drift()
     );
     record("friction-slide", "a", error);
     assert!(error.abs() < 0.01, "a = {a}, expected {exact}");
     assert!(sim.energies().dissipated > 0.0);
-    // Measured at most 6.9e-4 (implicit projection in 3D, its projection booked).
-    assert!(energy_error(&sim) < 1e-3, "{}", energy_error(&sim));
+    // The energy the scheme conserves closes to Newton's tolerance: measured at the end
+    // 1.8e-8 / 1.6e-8 under implicit projection (2D / 3D) and at most 1.6e-9 under the
+    // penalty methods (2026-12-03).
+    assert!(
+        monitor.scheme_energy_drift() < 1e-7,
+        "{}",
+        monitor.scheme_energy_drift()
+    );
+    // The mechanical energy differs from it by O(h) terms of the block's vibration, which
+    // swing with its phase: the 2D augmented Lagrangian's account read 4.2e-4, then 2.0e-3
+    // in its last two steps of free flight, and up to 2.5e-3 from step 100 on (1.9e-3 before
+    // Newton solved slip's coupling, when it ended at 8.2e-4 by its phase).
+    assert!(energy_error(&sim) < 4e-3, "{}", energy_error(&sim));
 }
 
 /// The bundled ring drop (soft way, zeta = 3e9 Pa/m) to its end (0.6 s: the landing, the

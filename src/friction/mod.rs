@@ -23,8 +23,8 @@
 //! and the elastic slip at most `F_t h / (4 diagonal)`, below `F_t h^2 / (4 m)`. The consistent tangent
 //! `d(-F_t)/dw1` is `eps_t A h (I - n n)` in stick and `(limit eps_t A h/|F_tr|)(I - n n - t t)`
 //! in slip; the slip's rank-one coupling of the threshold to the gap, `mu t dF_n/dv1`, is not
-//! symmetric and is left out of the iteration matrix (symmetric quasi-Newton, with
-//! backtracking; it is returned apart so that the tangent can be checked whole).
+//! symmetric: it is returned apart, kept out of the Cholesky and solved by GMRES on the
+//! symmetric factor (`simulation::linear_solve`), and the tangent is checked whole.
 //!
 //! In slip the consistent tangent has no stiffness along the slip: Newton moves a slipping
 //! point along it as far as the body's own stiffness allows. Where the point should stop, that

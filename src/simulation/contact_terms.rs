@@ -43,8 +43,9 @@ pub(super) struct ContactTerms<const D: usize> {
     pub pairs: Vec<PairOutcome<D>>,
     /// The non-symmetric part of `d(-forces)/dv1` left out of `entries`: Coulomb slip's
     /// coupling of the threshold to the gap, `-mu t dF_n/dv1`, one rank-one term `u v^T` per
-    /// slipping contact (sparse `u`, `v`). Newton adds it to the symmetric solves by the
-    /// Sherman-Morrison-Woodbury formula, so that the Cholesky never sees it.
+    /// slipping contact (sparse `u`, `v`). Newton solves with it by GMRES preconditioned with
+    /// the symmetric factorisation (or the Sherman-Morrison-Woodbury formula), so that the
+    /// Cholesky never sees it.
     pub coupling: Vec<RankOne>,
     /// The floating-point noise of the contact forces (N): a gap is known to a unit in the
     /// last place of the positions it is measured between, and each normal law multiplies it

@@ -67,17 +67,6 @@ const MAX_INVERSION_BACKTRACKS: usize = 20;
 /// (quasi-Newton).
 const MAX_COUPLED: usize = 64;
 
-/// Whether the coupled solve is on for every method. Implicit projection always uses it
-/// ([`Method::coupled_tangent`]); for the penalty methods' Coulomb slip it is off (slip's
-/// coupling left out: symmetric quasi-Newton with backtracking). Measured with it on: the 3D
-/// gripper under the augmented Lagrangian with the paper's fixed zeta lifts its block with the
-/// default settings (each Uzawa pass's Newton turns quadratic; the default growing penalty
-/// lifts it without), but the 2D augmented-Lagrangian block near the cone
-/// (tests/friction.rs `hops_near_the_cone`) hops in 15.3 % of its steps and the 2D stick test's
-/// energy error is 2.98e-2 (bound 2e-2). (The bit-for-bit retry it once broke was a stale
-/// iteration matrix, fixed: `advance_once` syncs the cached factorisations first.)
-const COUPLED_SOLVE: bool = false;
-
 /// Why a step's Newton iteration stopped short of its tolerance (for the message).
 #[derive(Clone, Copy)]
 enum Stall {
@@ -780,10 +769,13 @@ where
             vars.predicted.clear();
             // Linear solves go only as far as Newton needs: a tenth of its tolerance.
             let target = 0.1 * tolerance * scale;
-            // The non-symmetric rank-one terms of the tangent, when the method solves with them.
-            let coupling: &[RankOne] = if (COUPLED_SOLVE || method.coupled_tangent())
-                && terms.coupling.len() <= MAX_COUPLED
-            {
+            // The tangent's non-symmetric rank-one terms: implicit projection's held normal
+            // velocity on a turning normal (without it Newton converges linearly where a fold
+            // slides along itself, about 2.5x per iteration on the hairpin strip), and Coulomb
+            // slip's threshold-to-gap coupling (without it each penalty method's Newton
+            // converges linearly in slip: 4 to 5 times the iterations on the 2D slide, and the
+            // bundled block stack under the augmented Lagrangian ran out of its 50 at step 4).
+            let coupling: &[RankOne] = if terms.coupling.len() <= MAX_COUPLED {
                 &terms.coupling
             } else {
                 &[]

@@ -135,8 +135,9 @@ fn max_iterations_advice_says_when_it_helps() {
 /// A step that does not converge names where it is stuck (issue 10: "a clear error naming the
 /// step, time, residual and the contacts involved"): the node with the largest residual, its
 /// body and position, the contact there with its gap and normal force, and the step's pairs.
-/// The bundled ring drop with Coulomb friction and Newton held to 3 iterations stops at its
-/// landing.
+/// The bundled ring drop under the augmented Lagrangian with Coulomb friction and Newton held
+/// to 3 iterations stops at its landing. (Under the soft way it runs with 2 since Newton solves
+/// slip's coupling, 2026-12-03.)
 #[test]
 fn no_convergence_names_the_node_and_its_contact() {
     let dir = tempdir();
@@ -150,19 +151,21 @@ fn no_convergence_names_the_node_and_its_contact() {
             "--set",
             "simulation.max_iterations=3",
             "--set",
+            "contact.method=\"augmented_lagrangian\"",
+            "--set",
             "contact.friction={law=\"coulomb\",coefficient=0.3}",
         ],
     );
     assert_eq!(o.status.code(), Some(3), "{}", stderr(&o));
     let err = stderr(&o);
     let first = err.lines().next().unwrap();
-    // The landing: the first contact at step 200, the stop within a few steps of it.
+    // The landing: the first contact at step 125, the stop within a few steps of it.
     let step: usize = first
         .strip_prefix("error: no convergence at step ")
         .and_then(|rest| rest.split(' ').next())
         .and_then(|n| n.parse().ok())
         .unwrap_or_else(|| panic!("{err}"));
-    assert!((200..=210).contains(&step), "{err}");
+    assert!((125..=135).contains(&step), "{err}");
     for part in [
         "the largest residual, ",
         " N/m, is at node ",

@@ -772,13 +772,16 @@ fn a_scheme_outside_its_window_that_gains_energy_is_stopped() {
     );
 }
 
-/// The bundled tilting floor as shipped with Newton held to 10 iterations cuts steps from
-/// step 102 on (stick and slip as the plate starts turning): the summary says so. (Until the
-/// penalty methods' tangential spring was capped at four diagonals per step, the scene with a
-/// linear-elastic block and configuration gaps cut steps from step 109 with 20 iterations;
-/// since, it converges there with 8. With the default 50 it cut its step 131 until a stalled
-/// Newton was retried with the line search before the cut; the gripper used here before cut
-/// its step 100 under implicit projection until the active set stopped cycling.)
+/// The bundled tilting floor as shipped with Newton held to 7 iterations cuts its step 125
+/// (stick and slip as the plate turns): the summary says so. (With 10 it cut 5 steps from step
+/// 102 until Newton solved slip's coupling, 2026-12-03, and those cuts' own energy, each cut
+/// step's halves re-expressing the state for half the step and back, `step_change.rs`, was
+/// 5.6 % created; it now converges with 8 everywhere. Until the penalty methods' tangential
+/// spring was capped at four diagonals per step, the scene with a linear-elastic block and
+/// configuration gaps cut steps from step 109 with 20 iterations. With the default 50 it cut
+/// its step 131 until a stalled Newton was retried with the line search before the cut; the
+/// gripper used here before cut its step 100 under implicit projection until the active set
+/// stopped cycling.)
 #[test]
 fn step_cuts_are_a_warning() {
     let dir = tempdir();
@@ -792,27 +795,20 @@ fn step_cuts_are_a_warning() {
             "--set",
             "simulation.end_time=0.135",
             "--set",
-            "simulation.max_iterations=10",
+            "simulation.max_iterations=7",
             "--set",
             "output.vtk_interval=0",
         ],
     );
     assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
     let w = warnings(&out);
-    assert_eq!(w.len(), 2, "{w:?}");
     assert_eq!(
-        w[1],
-        "5 step(s) did not converge at full size and were cut (5 cut(s) in all), the first at \
-         step 102 (t = 1.020000e-1 s); 5 of them spent max_iterations = 10 at full size: a \
-         larger simulation.max_iterations, or a smaller time_step, avoids those cuts",
-    );
-    // The cuts' own energy: each cut step's halves re-express the state for half the step
-    // and back (`step_change.rs`), which moves the block by a(h/2)(v0 - v1) across the
-    // plate's start-up impact. The monitor has counted gravity's work on those shifts since
-    // 2026-11-30: 5.6 % created at most (4.4 % before, under the warning).
-    assert!(
-        w[0].starts_with("the run created energy") && w[0].contains("5.6% at most"),
-        "{w:?}"
+        w,
+        [
+            "1 step(s) did not converge at full size and were cut (1 cut(s) in all), the first at \
+          step 125 (t = 1.250000e-1 s); 1 of them spent max_iterations = 7 at full size: a \
+          larger simulation.max_iterations, or a smaller time_step, avoids those cuts"
+        ],
     );
 }
 

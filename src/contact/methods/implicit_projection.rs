@@ -184,13 +184,6 @@ impl Method for ImplicitProjection {
         true
     }
 
-    /// The held normal velocity turns with the master's normal: without that term Newton
-    /// converges linearly where a fold slides along itself (the hairpin strip: a factor of
-    /// about 2.5 per iteration, stalling above the tolerance).
-    fn coupled_tangent(&self) -> bool {
-        true
-    }
-
     /// No penalty here: a stiffness of `TANGENTIAL_PENALTY` times the slave's diagonal per
     /// step, so that a sticking point's elastic slip is `F_t h / diagonal`, at most
     /// `F_t h^2 / m`: the distance the friction force would move the node's mass in one step

@@ -304,12 +304,6 @@ pub(crate) trait Method: Sync {
         false
     }
 
-    /// Whether Newton solves with the non-symmetric rank-one terms of the tangent (by the
-    /// Sherman-Morrison-Woodbury formula on symmetric solves) rather than without them.
-    fn coupled_tangent(&self) -> bool {
-        false
-    }
-
     /// Whether Coulomb's threshold takes the normal force of the previous pass (a fixed point
     /// across passes) rather than the current iterate's.
     fn lagged_friction_threshold(&self) -> bool {
