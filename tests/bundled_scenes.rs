@@ -304,6 +304,86 @@ fn block_stack() {
     );
 }
 
+/// The same stack under the augmented Lagrangian (zeta = 1e9 Pa/m, the scene's Coulomb 0.5),
+/// to 0.5 s: the landing and the first ringing, on the gaps given. Returns the top block's
+/// move (m), the deepest point (m), the energy account, the scheme's account and the cut steps.
+fn stack_under_the_augmented_lagrangian(
+    gaps: &str,
+) -> (nalgebra::Vector3<f64>, f64, f64, f64, usize) {
+    let gaps = format!("contact.gap_displacement=\"{gaps}\"");
+    let (mut sim, _, _) = scene::<3>(
+        "block_stack",
+        &[
+            "simulation.end_time=0.5",
+            "contact.method=\"augmented_lagrangian\"",
+            "contact.penalty=1e9",
+            &gaps,
+        ],
+        [0.0; 3],
+    );
+    let top = sim.body_nodes(sim.body_id("top").unwrap()).unwrap();
+    let centre = |sim: &Simulation<3>| {
+        let x = sim.positions();
+        top.clone().map(|n| x[n]).sum::<nalgebra::Vector3<f64>>() / top.len() as f64
+    };
+    let start = centre(&sim);
+    let mut monitor = softway::simulation::RunMonitor::new(&sim);
+    let (mut deepest, mut cuts, mut iterations) = (0.0f64, 0, 0);
+    while sim.state().time < 0.5 - 1e-9 {
+        let r = sim
+            .step()
+            .unwrap_or_else(|e| panic!("t = {}: {e}", sim.state().time));
+        monitor
+            .step(&sim, &r)
+            .unwrap_or_else(|e| panic!("the run monitor stopped the run: {e}"));
+        assert_eq!(sim.fell_through(), None, "t = {}", r.time);
+        deepest = deepest.max(r.max_penetration);
+        cuts += r.cuts;
+        iterations += r.iterations;
+    }
+    let moved = centre(&sim) - start;
+    let (error, scheme) = (common::energy_error(&sim), monitor.scheme_energy_drift());
+    eprintln!(
+        "block stack, augmented Lagrangian, {gaps}: top block moved {moved:?} m, deepest \
+         {deepest:.2e} m, account {error:.2e}, scheme's {scheme:.2e}, {iterations} iterations, \
+         {cuts} cut(s)"
+    );
+    (moved, deepest, error, scheme, cuts)
+}
+
+/// The stack under the augmented Lagrangian with its default configuration gaps: it stopped at
+/// step 4 (no convergence in 50 iterations) until Newton solved slip's coupling (2026-12-03).
+/// It lands and rings without a cut step, sinks like the default method's stack, and closes
+/// its accounts; the configuration gaps' offset stores about one step's travel at the landing,
+/// 3.0e-3 m, which the run's summary warns about (measured 3.01e-3 m, account 1.4e-3).
+#[test]
+fn block_stack_under_the_augmented_lagrangian() {
+    let (moved, deepest, error, scheme, cuts) =
+        stack_under_the_augmented_lagrangian("configuration");
+    assert_eq!(cuts, 0, "steps cut");
+    assert!(
+        (-9.5e-3..-8e-3).contains(&moved.z),
+        "top block sank {} m",
+        -moved.z
+    );
+    assert!(deepest < 3.1e-3, "penetration {deepest} m");
+    assert!(error < 2e-2, "account {error}");
+    assert!(scheme < 1e-8, "scheme's account {scheme}");
+}
+
+/// Open: on configuration gaps the penalty methods' top block slides about 1 cm at the landing
+/// and then holds, where implicit projection's stays within 1 mm.
+#[test]
+#[ignore = "the top block slides 11.2 mm sideways at the landing (2026-12-03; the soft way's probe 11.6 mm, with slip's coupling solved or not): the configuration gaps' stored offset, 3.0e-3 m deep; on trapezoid gaps 0.3 mm (the soft way 2.9 mm), but the top block then rests 1.8 mm higher than under implicit projection, not yet understood"]
+fn block_stack_under_the_augmented_lagrangian_holds_its_offsets() {
+    let (moved, ..) = stack_under_the_augmented_lagrangian("configuration");
+    assert!(
+        moved.xy().norm() < 2e-3,
+        "top block slid {} m",
+        moved.xy().norm()
+    );
+}
+
 /// The tilting floor (Coulomb mu = 0.4, the plate turning at 0.5 rad/s from 0.1 s), run to
 /// 1 s (25.8 degrees). Per 10-step window, the plate's force along it over its force across
 /// it: while the block holds it follows tan(theta) (the static balance on the slope); it
