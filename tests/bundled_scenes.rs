@@ -305,19 +305,15 @@ fn block_stack() {
 }
 
 /// The same stack under the augmented Lagrangian (zeta = 1e9 Pa/m, the scene's Coulomb 0.5),
-/// to 0.5 s: the landing and the first ringing, on the gaps given. Returns the top block's
-/// move (m), the deepest point (m), the energy account, the scheme's account and the cut steps.
-fn stack_under_the_augmented_lagrangian(
-    gaps: &str,
-) -> (nalgebra::Vector3<f64>, f64, f64, f64, usize) {
-    let gaps = format!("contact.gap_displacement=\"{gaps}\"");
+/// to 0.5 s: the landing and the first ringing. Returns the top block's move (m), the
+/// deepest point (m), the energy account, the scheme's account and the cut steps.
+fn stack_under_the_augmented_lagrangian() -> (nalgebra::Vector3<f64>, f64, f64, f64, usize) {
     let (mut sim, _, _) = scene::<3>(
         "block_stack",
         &[
             "simulation.end_time=0.5",
             "contact.method=\"augmented_lagrangian\"",
             "contact.penalty=1e9",
-            &gaps,
         ],
         [0.0; 3],
     );
@@ -344,7 +340,7 @@ fn stack_under_the_augmented_lagrangian(
     let moved = centre(&sim) - start;
     let (error, scheme) = (common::energy_error(&sim), monitor.scheme_energy_drift());
     eprintln!(
-        "block stack, augmented Lagrangian, {gaps}: top block moved {moved:?} m, deepest \
+        "block stack, augmented Lagrangian: top block moved {moved:?} m, deepest \
          {deepest:.2e} m, account {error:.2e}, scheme's {scheme:.2e}, {iterations} iterations, \
          {cuts} cut(s)"
     );
@@ -358,8 +354,7 @@ fn stack_under_the_augmented_lagrangian(
 /// 3.0e-3 m, which the run's summary warns about (measured 3.01e-3 m, account 1.4e-3).
 #[test]
 fn block_stack_under_the_augmented_lagrangian() {
-    let (moved, deepest, error, scheme, cuts) =
-        stack_under_the_augmented_lagrangian("configuration");
+    let (moved, deepest, error, scheme, cuts) = stack_under_the_augmented_lagrangian();
     assert_eq!(cuts, 0, "steps cut");
     assert!(
         (-9.5e-3..-8e-3).contains(&moved.z),
@@ -376,7 +371,7 @@ fn block_stack_under_the_augmented_lagrangian() {
 #[test]
 #[ignore = "the top block slides 11.2 mm sideways at the landing (2026-12-03; the soft way's probe 11.6 mm, with slip's coupling solved or not): the configuration gaps' stored offset, 3.0e-3 m deep; on trapezoid gaps 0.3 mm (the soft way 2.9 mm), but the top block then rests 1.8 mm higher than under implicit projection, not yet understood"]
 fn block_stack_under_the_augmented_lagrangian_holds_its_offsets() {
-    let (moved, ..) = stack_under_the_augmented_lagrangian("configuration");
+    let (moved, ..) = stack_under_the_augmented_lagrangian();
     assert!(
         moved.xy().norm() < 2e-3,
         "top block slid {} m",

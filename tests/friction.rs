@@ -365,11 +365,24 @@ fn run_to<const D: usize>(sim: &mut Simulation<D>, time: f64) -> usize
 where
     Dim<D>: SpatialDim<D>,
 {
+    run_to_watching(sim, time, &mut |_, _| {})
+}
+
+/// [`run_to`], handing every step's report to `watch`.
+fn run_to_watching<const D: usize>(
+    sim: &mut Simulation<D>,
+    time: f64,
+    watch: &mut dyn FnMut(&Simulation<D>, &StepReport),
+) -> usize
+where
+    Dim<D>: SpatialDim<D>,
+{
     let mut most = 0;
     while sim.state().time < time - 1e-9 {
         let r = sim
             .step()
             .unwrap_or_else(|e| panic!("t = {}: {e}", sim.state().time));
+        watch(sim, &r);
         most = most.max(r.iterations);
     }
     most
@@ -421,17 +434,10 @@ where
     let (theta, mu) = (30f64.to_radians(), 0.3);
     let mut sim = slope::<D>(mu, method, RayleighDamping::NONE, 30.0, 1e-3);
     let mut monitor = RunMonitor::new(&sim);
-    let mut run_to = |sim: &mut Simulation<D>, time: f64| {
-        let mut most = 0;
-        while sim.state().time < time - 1e-9 {
-            let r = sim
-                .step()
-                .unwrap_or_else(|e| panic!("t = {}: {e}", sim.state().time));
-            monitor.step(sim, &r).unwrap();
-            most = most.max(r.iterations);
-        }
-        most
+    let mut watch = |sim: &Simulation<D>, r: &StepReport| {
+        monitor.step(sim, r).unwrap();
     };
+    let mut run_to = |sim: &mut Simulation<D>, time: f64| run_to_watching(sim, time, &mut watch);
     run_to(&mut sim, 0.1);
     // The acceleration: a least-squares line through the mean velocity of every step from
     // 0.1 s to 0.5 s (the block's elastic vibration averages out).
