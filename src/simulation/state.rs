@@ -23,7 +23,9 @@ pub struct State {
     /// The displacement contact gaps are measured on (m) (with
     /// [`crate::contact::GapDisplacement::Trapezoid`]): the running sum of eq 22,
     /// `h (v0 + v1) / 2` per step, moved with the configuration by end-of-step projections.
-    /// It differs from `displacement` by the scheme's `h (beta - 1/2) (v - v(0))` per node.
+    /// It differs from `displacement` by the scheme's `h (1/2 - beta) (v - v(0))` per node,
+    /// which changes of step and the augmented Lagrangian's persistency stop keep
+    /// (`simulation/step_change.rs`), so the two agree at rest.
     #[serde(default)]
     pub gap_displacement: Vec<f64>,
     /// The step size (s) the displacement and velocity are the scheme's variables for: the

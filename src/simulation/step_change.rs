@@ -31,7 +31,12 @@
 //! (by their velocity times the same lag) and back to their poses when the halves end
 //! ([`Simulation::shift_obstacles`]): the nodes on a moving plate then end the cut step a lag's
 //! travel ahead of it, and the next step's change puts them back on it. The gaps'
-//! displacement moves with the configuration.
+//! displacement moves with the configuration on configuration gaps; on trapezoid gaps (eq 22's
+//! running increment) it keeps its offset `h (1/2 - beta) (v - v(0))` from the configuration:
+//! it does not move at all at the default alpha + beta = 1, where it is w up to a constant,
+//! and bodies of updated-Lagrangian laws keep their configuration instead, whose shift their
+//! stress history would not see (`Simulation::reexpression_weights`; the obstacles' lag for a
+//! cut step's halves follows the gaps).
 
 use super::Simulation;
 use crate::assembly;
@@ -90,22 +95,41 @@ where
             v.clone()
         };
         // Every node, prescribed ones too (their velocity is prescribed, not their position),
-        // and the gaps' displacement with them: contact sees the same relative positions.
-        let shift: Vec<f64> = (0..ndof)
-            .map(|i| a * (from * v[i] - to * v_new[i]))
-            .collect();
-        let u_new: Vec<f64> = (0..ndof).map(|i| u[i] + shift[i]).collect();
-        if self.state.gap_displacement.len() == ndof {
-            for (g, d) in self.state.gap_displacement.iter_mut().zip(&shift) {
-                *g += d;
+        // and the gaps' displacement with them as `reexpression_weights` says: contact sees
+        // the same relative positions on configuration gaps, and on trapezoid gaps their
+        // offset from the configuration stays eq 22's, which vanishes at rest (shifted with
+        // the configuration there, a cut step left it off for good).
+        let mut shift = vec![0.0; ndof];
+        // What w moves by: nothing where the configuration takes `a` (a linear law's body).
+        let mut w_moved = vec![0.0; ndof];
+        let has_gaps = self.state.gap_displacement.len() == ndof;
+        for body in 0..self.model.bodies.len() {
+            let (c_u, c_gap) = self.reexpression_weights(body);
+            let nodes = self.nodes_of(body);
+            for i in nodes.start * D..nodes.end * D {
+                let change = from * v[i] - to * v_new[i];
+                shift[i] = c_u * change;
+                w_moved[i] = (c_u - a) * change;
+                if has_gaps {
+                    self.state.gap_displacement[i] += c_gap * change;
+                }
             }
         }
-        // The shadow displacement does not move, so external forces do no work in Q's terms;
-        // what Q loses is dissipated.
+        let u_new: Vec<f64> = (0..ndof).map(|i| u[i] + shift[i]).collect();
+        // Where the shadow displacement does not move, external forces do no work in Q's
+        // terms and what Q loses is dissipated; where it does (the bodies that keep their
+        // configuration), the loads' work on it, `f . dw`, is Q's too.
         let history = &self.state.material_history;
         let before = self.scheme_energy_at(&u, &v, from, history);
         let after = self.scheme_energy_at(&u_new, &v_new, to, history);
-        self.state.dissipated_energy += before - after;
+        let w_work: f64 = self
+            .gravity_force
+            .iter()
+            .zip(&self.state.loads)
+            .zip(&w_moved)
+            .map(|((g, l), d)| (g + l) * d)
+            .sum();
+        self.state.dissipated_energy += before - after + w_work;
         // The loads' work on the shift is the account's: E - W + D measures W on u, and the
         // monitor's Q-terms work, f . (w1 - w0) with w held here, is W + a h f . (v1 - v0)
         // only when W counts the shifts. Left out, two rubber blocks stacked with Coulomb
