@@ -32,6 +32,7 @@ mod locking;
 mod monitors;
 mod norton_hoff;
 mod obstacle_motion;
+mod persistency_stop;
 mod pipeline;
 mod recording;
 mod rolling;

@@ -131,6 +131,17 @@ pub struct ContactSettings {
     /// it is moved out.
     #[serde(default = "default_master_tolerance")]
     pub master_tolerance: f64,
+    /// On trapezoid gaps ([`GapDisplacement::Trapezoid`]), whether a pair that ends its step
+    /// closed (a normal force pushing it out) and still approaching has that relative normal
+    /// velocity stopped after the step (`Simulation::stop_closed_pairs`: the persistency
+    /// condition as a velocity update, the impulse's work booked as dissipation). `None`: the
+    /// method's own choice, on for the augmented Lagrangian (whose multipliers close those
+    /// gaps) and off for the soft way (the paper's penalty). On, the soft way's contact
+    /// nodes no longer keep the step-to-step alternation `w1 = -w0` that trapezoid gaps do
+    /// not see (the trapezoid rule on a penalty spring stiffer than the step resolves); the
+    /// book's contact chapter has the measurements. Penalty methods on trapezoid gaps only.
+    #[serde(default)]
+    pub persistency_stop: Option<bool>,
 }
 
 fn default_master_tolerance() -> f64 {
@@ -261,7 +272,8 @@ pub enum GapDisplacement {
     /// still approaching has that normal velocity stopped after the step, by the smallest
     /// change of the velocities in the step's metric (the persistency condition as a velocity
     /// update, after Laursen and Love 2002; booked as dissipation); without it a closed pair
-    /// alternates `w1 = -w0` from step to step, which the scheme does not damp.
+    /// alternates `w1 = -w0` from step to step, which the scheme does not damp. The soft way
+    /// takes the same stop as an option ([`ContactSettings::persistency_stop`]).
     Trapezoid,
 }
 
@@ -281,11 +293,26 @@ impl Default for ContactSettings {
             uzawa_penalty: UzawaPenalty::Growing,
             master_nodes: MasterNodes::Projected,
             master_tolerance: DEFAULT_MASTER_TOLERANCE,
+            persistency_stop: None,
         }
     }
 }
 
 impl ContactSettings {
+    /// Whether closed, approaching pairs are stopped after each step
+    /// ([`ContactSettings::persistency_stop`], or the method's own choice).
+    pub fn stops_closed_pairs(&self) -> bool {
+        let penalty_method = matches!(
+            self.method,
+            ContactMethod::SoftWay | ContactMethod::AugmentedLagrangian
+        );
+        penalty_method
+            && self.gap_displacement == GapDisplacement::Trapezoid
+            && self
+                .persistency_stop
+                .unwrap_or(self.method == ContactMethod::AugmentedLagrangian)
+    }
+
     /// Checks the parameters.
     pub fn validate(&self) -> Result<()> {
         let needs_penalty = matches!(
@@ -312,6 +339,26 @@ impl ContactSettings {
                 found: self.master_tolerance.to_string(),
                 expected: "a finite value >= 0 [m]".into(),
             });
+        }
+        if let Some(stop) = self.persistency_stop {
+            let penalty_method = matches!(
+                self.method,
+                ContactMethod::SoftWay | ContactMethod::AugmentedLagrangian
+            );
+            if !penalty_method || self.gap_displacement != GapDisplacement::Trapezoid {
+                return Err(Error::InvalidParameter {
+                    name: "persistency_stop".into(),
+                    found: format!(
+                        "{stop} with method {} on {:?} gaps",
+                        self.method.name(),
+                        self.gap_displacement
+                    ),
+                    expected: "method soft_way or augmented_lagrangian with gap_displacement \
+                               \"trapezoid\" (the stop keeps trapezoid gaps' closed pairs \
+                               closed), or no persistency_stop"
+                        .into(),
+                });
+            }
         }
         if self.penalty_force == PenaltyForce::Secant {
             if self.method != ContactMethod::SoftWay {

@@ -674,7 +674,7 @@ where
                 normal_velocity,
                 // Read only by the persistency stop after the step: no copy on the Newton
                 // iterations of the other methods.
-                nodes: if input.method.closes_gaps() {
+                nodes: if self.model.contact.stops_closed_pairs() {
                     nodes.clone()
                 } else {
                     Vec::new()

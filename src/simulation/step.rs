@@ -670,8 +670,8 @@ where
             }
         }
 
-        // The persistency condition of a method that closes its gaps, on trapezoid gaps.
-        if self.gaps_on_trapezoid() && method.closes_gaps() {
+        // The persistency condition on trapezoid gaps (`ContactSettings::stops_closed_pairs`).
+        if self.gaps_on_trapezoid() && self.model.contact.stops_closed_pairs() {
             let (u_before, v_before) = (u1.clone(), v1.clone());
             let mut impulses = vec![vec![0.0; D]; self.model.obstacles.len()];
             let first_applied = applied.len();

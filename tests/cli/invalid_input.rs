@@ -225,6 +225,13 @@ fn out_of_range_numbers() {
             "gap_displacement \"trapezoid\"",
         ),
         (
+            "persistency_stop_implicit_projection",
+            "contact.persistency_stop",
+            "persistency_stop = true",
+            "true with method \"implicit_projection\" and gap_displacement \"configuration\"",
+            "gap_displacement \"trapezoid\"",
+        ),
+        (
             "projection_unknown",
             "contact.projection",
             "projection = \"midpoint\"",

@@ -151,10 +151,6 @@ impl Method for AugmentedLagrangian {
     fn carries_multipliers(&self) -> bool {
         true
     }
-
-    fn closes_gaps(&self) -> bool {
-        true
-    }
 }
 
 #[cfg(test)]

@@ -153,8 +153,9 @@ pub(crate) struct PairOutcome<const D: usize> {
     pub obstacle: Option<usize>,
     /// The relative normal end velocity (m/s).
     pub normal_velocity: f64,
-    /// The slave and the master's nodes with their weights in the relative velocity (only for
-    /// a method that closes its gaps, [`Method::closes_gaps`]; empty otherwise).
+    /// The slave and the master's nodes with their weights in the relative velocity (only where
+    /// closed pairs are stopped after the step, `ContactSettings::stops_closed_pairs`; empty
+    /// otherwise).
     pub nodes: Vec<(usize, f64)>,
     /// The elastic slip after the step (m; return-map laws on closed contacts).
     pub anchor: Option<SVector<f64, D>>,
@@ -266,14 +267,6 @@ pub(crate) trait Method: Sync {
 
     /// Whether the multipliers are carried to the next step.
     fn carries_multipliers(&self) -> bool {
-        false
-    }
-
-    /// Whether its multipliers close the gaps it measures (the augmented Lagrangian): on
-    /// trapezoid gaps its closed pairs that still approach then have that relative normal
-    /// velocity stopped after each step (`Simulation::stop_closed_pairs`), the persistency
-    /// condition.
-    fn closes_gaps(&self) -> bool {
         false
     }
 

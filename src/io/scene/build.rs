@@ -427,6 +427,25 @@ impl LoadedScene {
                  way's pressure, and needs each step's start gap to be the last step's end gap)",
             ));
         }
+        if let Some(stop) = c.persistency_stop {
+            if !matches!(
+                method,
+                ContactMethod::SoftWay | ContactMethod::AugmentedLagrangian
+            ) || gap_displacement != GapDisplacement::Trapezoid
+            {
+                return Err(self.error(
+                    "contact.persistency_stop",
+                    format!(
+                        "{stop} with method \"{}\" and gap_displacement \"{}\"",
+                        method.name(),
+                        c.gap_displacement.as_deref().unwrap_or("configuration")
+                    ),
+                    "method \"soft_way\" or \"augmented_lagrangian\" with gap_displacement \
+                     \"trapezoid\" (the stop keeps trapezoid gaps' closed pairs closed), or no \
+                     persistency_stop",
+                ));
+            }
+        }
         Ok(ContactSettings {
             method,
             penalty: c.penalty.unwrap_or(0.0),
@@ -440,6 +459,7 @@ impl LoadedScene {
             uzawa_penalty,
             master_nodes,
             master_tolerance: c.master_tolerance,
+            persistency_stop: c.persistency_stop,
             ..ContactSettings::default()
         })
     }

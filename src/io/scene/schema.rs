@@ -169,6 +169,10 @@ pub struct ContactSection {
     /// The depth (m) from which "projected" moves a master node out.
     #[serde(default = "default_master_tolerance")]
     pub master_tolerance: f64,
+    /// On trapezoid gaps, stop closed pairs' approach after each step (default: the
+    /// method's; on for the augmented Lagrangian, off for the soft way).
+    #[serde(default)]
+    pub persistency_stop: Option<bool>,
 }
 
 fn default_master_tolerance() -> f64 {
@@ -194,6 +198,7 @@ impl Default for ContactSection {
             uzawa_penalty: None,
             master_nodes: None,
             master_tolerance: default_master_tolerance(),
+            persistency_stop: None,
         }
     }
 }
