@@ -383,6 +383,46 @@ fn block_stack_under_the_augmented_lagrangian_holds_its_offsets() {
 /// 1 s (25.8 degrees). Per 10-step window, the plate's force along it over its force across
 /// it: while the block holds it follows tan(theta) (the static balance on the slope); it
 /// reaches mu (the block slides) near atan(mu) = 21.8 degrees, and stays there.
+/// The resting block (the soft way on trapezoid gaps with the persistency stop): it lands and
+/// rests on its penalty, its bottom face's centre still (at most 2.4e-8 m/s over the last 10
+/// steps, 2026-12-03) and within twice the pressure over zeta (1.04e-6 m below the floor
+/// against 9.81e-7 m), its account closed (3.4e-11). With `contact.persistency_stop=false`
+/// (the paper's soft way) the same node alternates at 3.5e-2 m/s from step to step.
+#[test]
+fn resting_block() {
+    let run = |overrides: &[&str]| {
+        let (mut sim, end, bottom) = scene::<3>("resting_block", overrides, [0.05, 0.05, 0.02]);
+        let mut fastest = 0.0f64;
+        while sim.state().time < end - 1e-9 {
+            let r = sim
+                .step()
+                .unwrap_or_else(|e| panic!("t = {}: {e}", sim.state().time));
+            assert_eq!(sim.fell_through(), None, "t = {}", r.time);
+            if sim.state().time > end - 10.5 / 60.0 {
+                fastest = fastest.max(sim.state().velocity[bottom * 3 + 2].abs());
+            }
+        }
+        let depth = -0.02 - sim.state().displacement[bottom * 3 + 2];
+        (fastest, depth, common::energy_error(&sim))
+    };
+    let (fastest, depth, account) = run(&[]);
+    let pressure_depth = 1000.0 * 9.81 * 0.1 / 1e9;
+    eprintln!(
+        "resting block: bottom centre at most {fastest:.2e} m/s over the last 10 steps, \
+         {depth:.3e} m below the floor (pressure / zeta {pressure_depth:.3e} m), account \
+         {account:.2e}"
+    );
+    assert!(fastest < 1e-6, "{fastest} m/s");
+    assert!(
+        depth > 0.0 && depth < 2.0 * pressure_depth,
+        "{depth} m below the floor"
+    );
+    assert!(account < 1e-6, "account {account}");
+    let (alternating, ..) = run(&["contact.persistency_stop=false"]);
+    eprintln!("without the stop: {alternating:.2e} m/s");
+    assert!(alternating > 5e-3, "{alternating} m/s");
+}
+
 #[test]
 fn tilting_floor() {
     let (mut sim, _, centre) = scene::<2>(

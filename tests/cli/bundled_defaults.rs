@@ -27,6 +27,7 @@ const EXPECTED: &[(&str, &[&str])] = &[
     // On the paper's configuration gaps the stored configuration's offset created 25 % at step
     // 2; on trapezoid gaps none.
     ("octagon_compression", &[]),
+    ("resting_block", &[]),
     // At zeta = 1e10 Pa/m the paper's configuration gaps put energy in at each bounce (5.7 %
     // at step 582 of 600); at 3e9 none.
     ("ring_drop", &[]),
