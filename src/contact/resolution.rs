@@ -56,6 +56,15 @@ impl ContactMethod {
             ContactMethod::ExplicitProjection => "explicit_projection",
         }
     }
+
+    /// Whether it is a penalty method (the soft way, the augmented Lagrangian): one that needs
+    /// `penalty` (zeta) and may measure its gaps on [`GapDisplacement::Trapezoid`].
+    pub fn is_penalty(self) -> bool {
+        matches!(
+            self,
+            ContactMethod::SoftWay | ContactMethod::AugmentedLagrangian
+        )
+    }
 }
 
 /// Parses the scene-file name of a method (`[contact].method`: "soft_way",
@@ -302,11 +311,7 @@ impl ContactSettings {
     /// Whether closed, approaching pairs are stopped after each step
     /// ([`ContactSettings::persistency_stop`], or the method's own choice).
     pub fn stops_closed_pairs(&self) -> bool {
-        let penalty_method = matches!(
-            self.method,
-            ContactMethod::SoftWay | ContactMethod::AugmentedLagrangian
-        );
-        penalty_method
+        self.method.is_penalty()
             && self.gap_displacement == GapDisplacement::Trapezoid
             && self
                 .persistency_stop
@@ -315,11 +320,7 @@ impl ContactSettings {
 
     /// Checks the parameters.
     pub fn validate(&self) -> Result<()> {
-        let needs_penalty = matches!(
-            self.method,
-            ContactMethod::SoftWay | ContactMethod::AugmentedLagrangian
-        );
-        if needs_penalty && !(self.penalty > 0.0 && self.penalty.is_finite()) {
+        if self.method.is_penalty() && !(self.penalty > 0.0 && self.penalty.is_finite()) {
             return Err(Error::InvalidParameter {
                 name: "penalty".into(),
                 found: self.penalty.to_string(),
@@ -341,11 +342,7 @@ impl ContactSettings {
             });
         }
         if let Some(stop) = self.persistency_stop {
-            let penalty_method = matches!(
-                self.method,
-                ContactMethod::SoftWay | ContactMethod::AugmentedLagrangian
-            );
-            if !penalty_method || self.gap_displacement != GapDisplacement::Trapezoid {
+            if !self.method.is_penalty() || self.gap_displacement != GapDisplacement::Trapezoid {
                 return Err(Error::InvalidParameter {
                     name: "persistency_stop".into(),
                     found: format!(

@@ -332,10 +332,7 @@ impl LoadedScene {
         };
         if let Some(p) = c.penalty {
             self.positive("contact.penalty", p, "Pa/m")?;
-        } else if matches!(
-            method,
-            ContactMethod::SoftWay | ContactMethod::AugmentedLagrangian
-        ) {
+        } else if method.is_penalty() {
             return Err(self.error(
                 "contact.penalty",
                 "nothing",
@@ -428,11 +425,7 @@ impl LoadedScene {
             ));
         }
         if let Some(stop) = c.persistency_stop {
-            if !matches!(
-                method,
-                ContactMethod::SoftWay | ContactMethod::AugmentedLagrangian
-            ) || gap_displacement != GapDisplacement::Trapezoid
-            {
+            if !method.is_penalty() || gap_displacement != GapDisplacement::Trapezoid {
                 return Err(self.error(
                     "contact.persistency_stop",
                     format!(
