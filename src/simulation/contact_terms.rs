@@ -364,6 +364,8 @@ where
             .filter_map(|pair| Some((pair, self.pair_normal(pair, input)?)))
             .collect();
         let patch = self.area_law_patch(normals.iter().map(|(_, p)| p), input);
+        // Only the persistency stop after the step reads a pair's nodes.
+        let keep_nodes = self.model.contact.stops_closed_pairs();
         for (pair, p) in &normals {
             let s = pair.slave;
             let PairNormal {
@@ -672,9 +674,8 @@ where
                 master_point,
                 obstacle,
                 normal_velocity,
-                // Read only by the persistency stop after the step: no copy on the Newton
-                // iterations of the other methods.
-                nodes: if self.model.contact.stops_closed_pairs() {
+                // No copy on the Newton iterations where nothing stops pairs.
+                nodes: if keep_nodes {
                     nodes.clone()
                 } else {
                     Vec::new()

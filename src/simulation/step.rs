@@ -671,7 +671,7 @@ where
         }
 
         // The persistency condition on trapezoid gaps (`ContactSettings::stops_closed_pairs`).
-        if self.gaps_on_trapezoid() && self.model.contact.stops_closed_pairs() {
+        if self.model.contact.stops_closed_pairs() {
             let (u_before, v_before) = (u1.clone(), v1.clone());
             let mut impulses = vec![vec![0.0; D]; self.model.obstacles.len()];
             let first_applied = applied.len();
