@@ -57,6 +57,46 @@ macro_rules! per_method {
 per_method!(slide, block_on_a_slope_slides);
 per_method!(stick, block_on_a_slope_sticks);
 
+/// The persistency stop on trapezoid gaps (the augmented Lagrangian's by default, the soft
+/// way's as an option) gives a closing pair an impulse after the step; on a pair that slips,
+/// Coulomb's law asks `mu` times it of friction against the slip. Frictionless, the stop let
+/// the block slide 8.6 % (soft way) and 10.0 % (augmented Lagrangian) faster than the law
+/// (2D, measured 2026-12-03).
+mod slide_with_the_stop {
+    use super::*;
+    fn slides<const D: usize>(method: ContactMethod, stop: Option<bool>)
+    where
+        Dim<D>: SpatialDim<D>,
+    {
+        let sim = slope_with_gaps::<D>(
+            0.3,
+            method,
+            RayleighDamping::NONE,
+            30.0,
+            1e-3,
+            GapDisplacement::Trapezoid,
+            stop,
+        );
+        slides_at_the_law_s_rate(sim, &format!("{method:?} on trapezoid gaps, stop {stop:?}"));
+    }
+    #[test]
+    fn d2_soft_way() {
+        slides::<2>(ContactMethod::SoftWay, Some(true));
+    }
+    #[test]
+    fn d3_soft_way() {
+        slides::<3>(ContactMethod::SoftWay, Some(true));
+    }
+    #[test]
+    fn d2_augmented_lagrangian() {
+        slides::<2>(ContactMethod::AugmentedLagrangian, None);
+    }
+    #[test]
+    fn d3_augmented_lagrangian() {
+        slides::<3>(ContactMethod::AugmentedLagrangian, None);
+    }
+}
+
 // The scene a user tries first: 30 degrees, mu = 0.7 (tan 30 / 0.7 = 0.82 of the cone), here
 // with a material damping of 20 % of critical at the block's first mode: it sticks under every
 // method at the default step. With 5 % it walks, and so does the converged model
@@ -130,6 +170,45 @@ fn walks_near_the_cone_when_lightly_damped() {
         assert!(
             (walk - mean).abs() < 0.03 * mean,
             "{method:?} walks {walk:e} m, the methods' mean {mean:e} m"
+        );
+    }
+}
+
+/// The walk of [`walks_near_the_cone_when_lightly_damped`] with the persistency stop on
+/// trapezoid gaps (the soft way's option, the augmented Lagrangian's default there), against
+/// implicit projection's. Measured 2026-12-03 (release build): implicit projection 4.42 mm,
+/// the soft way with the stop 4.61 mm, the augmented Lagrangian 4.64 mm; 5.57 and 4.96 mm
+/// while the stop's impulse carried no friction.
+#[test]
+#[ignore = "slow: about 4 minutes in a release build (three runs of 10 000 steps); \
+            walks_near_the_cone_when_lightly_damped runs the methods on their default gaps"]
+fn walks_near_the_cone_with_the_stop() {
+    let walk = |gaps, method, stop| {
+        let mut sim =
+            slope_with_gaps::<2>(0.7, method, material_damping(0.05), 30.0, 1e-4, gaps, stop);
+        run_to(&mut sim, 0.1);
+        let start = mean_along::<2>(&sim.state().displacement);
+        run_to(&mut sim, 1.0);
+        let walk = mean_along::<2>(&sim.state().displacement) - start;
+        eprintln!(
+            "{method:?} on {gaps:?} gaps, stop {stop:?}: walk {walk:.4e} m, energy error {:.2e}",
+            energy_error(&sim)
+        );
+        walk
+    };
+    let reference = walk(
+        GapDisplacement::Configuration,
+        ContactMethod::ImplicitProjection,
+        None,
+    );
+    for (method, stop) in [
+        (ContactMethod::SoftWay, Some(true)),
+        (ContactMethod::AugmentedLagrangian, None),
+    ] {
+        let w = walk(GapDisplacement::Trapezoid, method, stop);
+        assert!(
+            (w - reference).abs() < 0.08 * reference,
+            "{method:?} with the stop walks {w:e} m, implicit projection {reference:e} m"
         );
     }
 }
@@ -450,8 +529,17 @@ fn block_on_a_slope_slides<const D: usize>(method: ContactMethod)
 where
     Dim<D>: SpatialDim<D>,
 {
+    let sim = slope::<D>(0.3, method, RayleighDamping::NONE, 30.0, 1e-3);
+    slides_at_the_law_s_rate(sim, &format!("{method:?}"));
+}
+
+/// Runs a block on a 30 degree slope with Coulomb 0.3 from rest to 0.5 s and checks its
+/// acceleration g (sin 30 - 0.3 cos 30) within 1 %, the dissipation and the account.
+fn slides_at_the_law_s_rate<const D: usize>(mut sim: Simulation<D>, method: &str)
+where
+    Dim<D>: SpatialDim<D>,
+{
     let (theta, mu) = (30f64.to_radians(), 0.3);
-    let mut sim = slope::<D>(mu, method, RayleighDamping::NONE, 30.0, 1e-3);
     let mut monitor = RunMonitor::new(&sim);
     let mut watch = |sim: &Simulation<D>, r: &StepReport| {
         monitor.step(sim, r).unwrap();
@@ -479,7 +567,7 @@ where
     let exact = G * (theta.sin() - mu * theta.cos());
     let error = (a - exact) / exact;
     eprintln!(
-        "{D}D {method:?} slide: a = {a:.5} m/s^2, expected {exact:.5} ({:.3} %), iterations per step <= \
+        "{D}D {method} slide: a = {a:.5} m/s^2, expected {exact:.5} ({:.3} %), iterations per step <= \
          {most}, dissipated {:.4e} J, energy error {:.2e}, scheme's account {:.2e}",
         100.0 * error,
         sim.energies().dissipated,

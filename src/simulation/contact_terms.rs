@@ -674,6 +674,7 @@ where
                 master_point,
                 obstacle,
                 normal_velocity,
+                master_velocity,
                 // No copy on the Newton iterations where nothing stops pairs.
                 nodes: if keep_nodes {
                     nodes.clone()

@@ -153,6 +153,9 @@ pub(crate) struct PairOutcome<const D: usize> {
     pub obstacle: Option<usize>,
     /// The relative normal end velocity (m/s).
     pub normal_velocity: f64,
+    /// The master's velocity where the slave touches it (m/s; an obstacle's surface
+    /// velocity, zero for a facet, whose nodes are in `nodes`).
+    pub master_velocity: SVector<f64, D>,
     /// The slave and the master's nodes with their weights in the relative velocity (only where
     /// closed pairs are stopped after the step, `ContactSettings::stops_closed_pairs`; empty
     /// otherwise).
